@@ -1,0 +1,251 @@
+//! Colliders and the contact response shared by the explicit integrators.
+
+use glam::Vec3;
+
+use crate::error::{ClothError, Result, check};
+use crate::particles::Particles;
+
+/// Coulomb friction coefficients.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Friction {
+    /// Static coefficient μ_s, `>= 0`: a contact sticks while the tangential impulse needed
+    /// to stop it is at most μ_s times the normal impulse. Default 0.5.
+    pub static_coefficient: f32,
+    /// Kinetic coefficient μ_k, `>= 0`: a sliding contact loses tangential speed by μ_k
+    /// times the normal impulse (per unit mass). Default 0.4.
+    pub kinetic_coefficient: f32,
+}
+
+impl Default for Friction {
+    fn default() -> Self {
+        Self {
+            static_coefficient: 0.5,
+            kinetic_coefficient: 0.4,
+        }
+    }
+}
+
+impl Friction {
+    /// No friction.
+    pub const NONE: Self = Self {
+        static_coefficient: 0.0,
+        kinetic_coefficient: 0.0,
+    };
+
+    /// Static and kinetic coefficients.
+    #[must_use]
+    pub const fn new(static_coefficient: f32, kinetic_coefficient: f32) -> Self {
+        Self {
+            static_coefficient,
+            kinetic_coefficient,
+        }
+    }
+}
+
+/// The geometry of a collider, at its current position.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Shape {
+    /// A solid ball.
+    Sphere {
+        /// Centre, m.
+        center: Vec3,
+        /// Radius, m, `> 0`.
+        radius: f32,
+    },
+    /// An infinite plane; the solid is the half-space behind it.
+    Plane {
+        /// Any point on the plane, m.
+        point: Vec3,
+        /// Outward normal (unit length after [`Collider::validate`]).
+        normal: Vec3,
+    },
+}
+
+impl Shape {
+    /// Signed distance from `p` to the surface (positive outside) and the outward normal at
+    /// the closest point.
+    #[must_use]
+    pub fn distance(&self, p: Vec3) -> (f32, Vec3) {
+        match *self {
+            Shape::Sphere { center, radius } => {
+                let d = p - center;
+                let len = d.length();
+                let n = if len > 0.0 { d / len } else { Vec3::Y };
+                (len - radius, n)
+            }
+            Shape::Plane { point, normal } => ((p - point).dot(normal), normal),
+        }
+    }
+
+    fn translate(&mut self, by: Vec3) {
+        match self {
+            Shape::Sphere { center, .. } => *center += by,
+            Shape::Plane { point, .. } => *point += by,
+        }
+    }
+}
+
+/// A kinematic collider: a shape moving with a prescribed velocity, with a contact thickness
+/// and friction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Collider {
+    /// Geometry at the current time.
+    pub shape: Shape,
+    /// Prescribed linear velocity, m/s. Default zero (static).
+    pub velocity: Vec3,
+    /// Contact thickness, m, `>= 0`: particles are kept this far outside the surface.
+    /// Default 0.01 m.
+    pub thickness: f32,
+    /// Friction against the cloth. Default [`Friction::default`].
+    pub friction: Friction,
+}
+
+impl Collider {
+    /// A static sphere with default thickness and friction.
+    #[must_use]
+    pub fn sphere(center: Vec3, radius: f32) -> Self {
+        Self::new(Shape::Sphere { center, radius })
+    }
+
+    /// A static plane through `point` with outward `normal` (normalised when added).
+    #[must_use]
+    pub fn plane(point: Vec3, normal: Vec3) -> Self {
+        Self::new(Shape::Plane { point, normal })
+    }
+
+    /// A static collider of `shape` with default thickness and friction.
+    #[must_use]
+    pub fn new(shape: Shape) -> Self {
+        Self {
+            shape,
+            velocity: Vec3::ZERO,
+            thickness: 0.01,
+            friction: Friction::default(),
+        }
+    }
+
+    /// With contact thickness `thickness`, m.
+    #[must_use]
+    pub fn with_thickness(mut self, thickness: f32) -> Self {
+        self.thickness = thickness;
+        self
+    }
+
+    /// With friction coefficients.
+    #[must_use]
+    pub fn with_friction(mut self, friction: Friction) -> Self {
+        self.friction = friction;
+        self
+    }
+
+    /// Moving at `velocity`, m/s.
+    #[must_use]
+    pub fn with_velocity(mut self, velocity: Vec3) -> Self {
+        self.velocity = velocity;
+        self
+    }
+
+    /// Checks every field (naming the collider by `index`) and normalises a plane's normal.
+    pub fn validate(mut self, index: usize) -> Result<Self> {
+        let name = |field: &str| format!("colliders[{index}].{field}");
+        match &mut self.shape {
+            Shape::Sphere { center, radius } => {
+                check::finite_vec(&name("center"), *center)?;
+                check::positive(&name("radius"), *radius)?;
+            }
+            Shape::Plane { point, normal } => {
+                check::finite_vec(&name("point"), *point)?;
+                check::finite_vec(&name("normal"), *normal)?;
+                let len = normal.length();
+                if !(len.is_finite() && len > 1e-6) {
+                    return Err(ClothError::invalid(
+                        name("normal"),
+                        *normal,
+                        "a non-zero finite vector",
+                    ));
+                }
+                *normal /= len;
+            }
+        }
+        check::finite_vec(&name("velocity"), self.velocity)?;
+        check::non_negative(&name("thickness"), self.thickness)?;
+        check::non_negative(
+            &name("friction.static_coefficient"),
+            self.friction.static_coefficient,
+        )?;
+        check::non_negative(
+            &name("friction.kinetic_coefficient"),
+            self.friction.kinetic_coefficient,
+        )?;
+        Ok(self)
+    }
+
+    /// Advances the collider along its prescribed motion by `h` seconds.
+    pub(crate) fn advance(&mut self, h: f32) {
+        if self.velocity != Vec3::ZERO {
+            self.shape.translate(self.velocity * h);
+        }
+    }
+}
+
+/// Counts of the contacts handled in one substep.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct ContactStats {
+    pub contacts: u32,
+}
+
+/// Projects every free particle that is inside a collider's contact surface (surface +
+/// thickness) back onto it, removes the approaching normal velocity relative to the collider
+/// and applies Coulomb friction to the tangential part.
+///
+/// Friction, after Bridson et al. 2002: with Δv_n the normal velocity removed, a contact
+/// sticks (tangential relative velocity set to zero) when |v_t| ≤ μ_s·Δv_n, else it slides
+/// with |v_t| reduced by μ_k·Δv_n. The integrator already moved the particle with the
+/// velocity from before the contact; `pos_weight` is how much of the new velocity enters the
+/// new position (h for symplectic Euler, h/2 for position Verlet, 0 for forward Euler), and
+/// the tangential velocity change times `pos_weight` is applied to the position too, so that
+/// a sticking contact does not creep.
+pub(crate) fn resolve_contacts(
+    colliders: &[Collider],
+    particles: &mut Particles,
+    pos_weight: f32,
+    stats: &mut ContactStats,
+) {
+    stats.contacts = 0;
+    for collider in colliders {
+        let mu_s = collider.friction.static_coefficient;
+        let mu_k = collider.friction.kinetic_coefficient;
+        for ((x, v), &w) in particles
+            .position
+            .iter_mut()
+            .zip(particles.velocity.iter_mut())
+            .zip(&particles.inv_mass)
+        {
+            if w == 0.0 {
+                continue;
+            }
+            let (dist, n) = collider.shape.distance(*x);
+            let phi = dist - collider.thickness;
+            if phi >= 0.0 {
+                continue;
+            }
+            stats.contacts += 1;
+            *x -= phi * n;
+            let v_rel = *v - collider.velocity;
+            let vn = v_rel.dot(n);
+            if vn >= 0.0 {
+                continue;
+            }
+            let dvn = -vn;
+            let vt = v_rel - vn * n;
+            let vt_len = vt.length();
+            let vt_new = if vt_len <= mu_s * dvn {
+                Vec3::ZERO
+            } else {
+                vt * (1.0 - mu_k * dvn / vt_len).max(0.0)
+            };
+            *v = collider.velocity + vt_new;
+            *x += pos_weight * (vt_new - vt);
+        }
+    }
+}

@@ -1,0 +1,330 @@
+//! Simulation parameters. Every struct implements `Default`; each field's doc gives its unit
+//! and default value. All units are SI.
+
+use glam::Vec3;
+
+use crate::error::{ClothError, Result, check};
+use crate::topology::SpringKind;
+
+/// Stiffness and damping of one kind of spring.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpringParams {
+    /// Hooke stiffness k in F = k(|L| − L0)·L/|L|, N/m. Must be finite and `>= 0`.
+    pub stiffness: f32,
+    /// Dashpot coefficient c along the spring, F = c((v_b − v_a)·d)·d, N·s/m. Must be finite
+    /// and `>= 0`.
+    pub damping: f32,
+}
+
+impl SpringParams {
+    /// A spring of stiffness `stiffness` (N/m) and dashpot `damping` (N·s/m).
+    #[must_use]
+    pub const fn new(stiffness: f32, damping: f32) -> Self {
+        Self { stiffness, damping }
+    }
+}
+
+/// The fabric: spring parameters per kind.
+///
+/// Defaults: structural 500 N/m, shear 100 N/m, bend 20 N/m, each with a 0.1 N·s/m dashpot,
+/// warp and weft alike.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Material {
+    /// Structural springs along the warp (between rows). Default 500 N/m, 0.1 N·s/m.
+    pub warp: SpringParams,
+    /// Structural springs along the weft (between columns). Default 500 N/m, 0.1 N·s/m.
+    pub weft: SpringParams,
+    /// Shear springs (cell diagonals). Default 100 N/m, 0.1 N·s/m.
+    pub shear: SpringParams,
+    /// Bending springs (two apart). Default 20 N/m, 0.1 N·s/m.
+    pub bend: SpringParams,
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Self {
+            warp: SpringParams::new(500.0, 0.1),
+            weft: SpringParams::new(500.0, 0.1),
+            shear: SpringParams::new(100.0, 0.1),
+            bend: SpringParams::new(20.0, 0.1),
+        }
+    }
+}
+
+impl Material {
+    /// The same structural parameters along warp and weft.
+    #[must_use]
+    pub const fn isotropic(
+        structural: SpringParams,
+        shear: SpringParams,
+        bend: SpringParams,
+    ) -> Self {
+        Self {
+            warp: structural,
+            weft: structural,
+            shear,
+            bend,
+        }
+    }
+
+    /// Parameters of one kind.
+    #[must_use]
+    pub fn params(&self, kind: SpringKind) -> SpringParams {
+        match kind {
+            SpringKind::Warp => self.warp,
+            SpringKind::Weft => self.weft,
+            SpringKind::Shear => self.shear,
+            SpringKind::Bend => self.bend,
+        }
+    }
+
+    fn validate(&self) -> Result<()> {
+        for kind in SpringKind::ALL {
+            let p = self.params(kind);
+            check::non_negative(&format!("material.{}.stiffness", kind.name()), p.stiffness)?;
+            check::non_negative(&format!("material.{}.damping", kind.name()), p.damping)?;
+        }
+        Ok(())
+    }
+}
+
+/// Periodic gusts on top of the steady wind.
+///
+/// The wind speed is multiplied by `1 + amplitude · g(t)`, where
+/// g(t) = 0.6·sin(2πft) + 0.4·sin(2π·2.37·ft + 1.3) is a smooth, deterministic signal in
+/// [−1, 1].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gust {
+    /// Relative strength of the gusts, in [0, 1]. Default 0.5.
+    pub amplitude: f32,
+    /// Base frequency f of the gusts, Hz, `> 0`. Default 0.5 Hz.
+    pub frequency: f32,
+}
+
+impl Default for Gust {
+    fn default() -> Self {
+        Self {
+            amplitude: 0.5,
+            frequency: 0.5,
+        }
+    }
+}
+
+/// Air: per-triangle aerodynamic drag and lift against the wind.
+///
+/// For each triangle of area A and unit normal n, with the air's velocity relative to the
+/// triangle v_rel = wind − (v₀+v₁+v₂)/3 and cos θ = n·v̂_rel:
+/// - drag, along the normal: F_d = ½ρ|v_rel|²·C_d·A·cos θ · n (pushes the cloth along the
+///   wind's normal component, whichever side the wind comes from);
+/// - lift, perpendicular to the wind in the plane of n and v_rel:
+///   F_l = ½ρ|v_rel|²·C_l·A·|cos θ|·sin θ · l̂.
+///
+/// Each triangle's force is shared equally by its three particles. This is the model of
+/// NvCloth and Blender's cloth.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Air {
+    /// Air density ρ, kg/m³, `>= 0`. Default 1.2 kg/m³.
+    pub density: f32,
+    /// Drag coefficient C_d, dimensionless, `>= 0`. Default 1.0.
+    pub drag_coefficient: f32,
+    /// Lift coefficient C_l, dimensionless, `>= 0`. Default 0.2.
+    pub lift_coefficient: f32,
+    /// Steady wind velocity, m/s. Default zero (still air: drag only against the cloth's own
+    /// motion).
+    pub wind: Vec3,
+    /// Optional gusts modulating the wind. Default `None`.
+    pub gust: Option<Gust>,
+}
+
+impl Default for Air {
+    fn default() -> Self {
+        Self {
+            density: 1.2,
+            drag_coefficient: 1.0,
+            lift_coefficient: 0.2,
+            wind: Vec3::ZERO,
+            gust: None,
+        }
+    }
+}
+
+impl Air {
+    /// The wind velocity at simulated time `t` (s), gusts included.
+    #[must_use]
+    pub fn wind_at(&self, t: f64) -> Vec3 {
+        match self.gust {
+            None => self.wind,
+            Some(g) => {
+                let phase = std::f64::consts::TAU * f64::from(g.frequency) * t;
+                let signal = 0.6 * phase.sin() + 0.4 * (2.37 * phase + 1.3).sin();
+                self.wind * (1.0 + g.amplitude * signal as f32)
+            }
+        }
+    }
+
+    fn validate(&self) -> Result<()> {
+        check::non_negative("air.density", self.density)?;
+        check::non_negative("air.drag_coefficient", self.drag_coefficient)?;
+        check::non_negative("air.lift_coefficient", self.lift_coefficient)?;
+        check::finite_vec("air.wind", self.wind)?;
+        if let Some(g) = self.gust {
+            check::in_range("air.gust.amplitude", g.amplitude, 0.0, 1.0)?;
+            check::positive("air.gust.frequency", g.frequency)?;
+        }
+        Ok(())
+    }
+}
+
+/// Switches for each force term. All on by default.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ForceSwitches {
+    /// Gravity m·g.
+    pub gravity: bool,
+    /// Hooke springs.
+    pub springs: bool,
+    /// Dashpots along the springs.
+    pub dashpots: bool,
+    /// The seed's global damping −d·v.
+    pub damping: bool,
+    /// Air drag and lift.
+    pub air: bool,
+}
+
+impl Default for ForceSwitches {
+    fn default() -> Self {
+        Self {
+            gravity: true,
+            springs: true,
+            dashpots: true,
+            damping: true,
+            air: true,
+        }
+    }
+}
+
+/// The time integrator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[non_exhaustive]
+pub enum Integrator {
+    /// Forward (explicit) Euler, as the seed paper writes it: x += h·v, then v += h·a(x, v).
+    /// First order and unconditionally unstable for undamped springs: its energy grows by a
+    /// factor 1 + (ωh)² every step.
+    ForwardEuler,
+    /// Symplectic (semi-implicit) Euler, what the seed's code does: v += h·a(x, v), then
+    /// x += h·v. Stable for h < 2/ω; its energy oscillates but does not drift. The default.
+    #[default]
+    SymplecticEuler,
+    /// Position Verlet (drift–kick–drift, Störmer–Verlet in its position form): x += ½h·v,
+    /// v += h·a(x, v), x += ½h·v. Second order and symplectic, one force evaluation per step.
+    Verlet,
+}
+
+impl Integrator {
+    /// All integrators.
+    pub const ALL: [Integrator; 3] = [Self::ForwardEuler, Self::SymplecticEuler, Self::Verlet];
+
+    /// Short name.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::ForwardEuler => "forward-euler",
+            Self::SymplecticEuler => "symplectic-euler",
+            Self::Verlet => "verlet",
+        }
+    }
+}
+
+/// Limits past which a step is reported as unstable instead of accepted.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StabilityLimits {
+    /// Largest allowed spring length as a multiple of its rest length. Default 10.
+    /// Must be `> 1`.
+    pub max_stretch_ratio: f32,
+    /// Largest allowed particle speed, m/s. Default 1000 m/s. Must be `> 0`.
+    pub max_speed: f32,
+}
+
+impl Default for StabilityLimits {
+    fn default() -> Self {
+        Self {
+            max_stretch_ratio: 10.0,
+            max_speed: 1000.0,
+        }
+    }
+}
+
+/// Everything a [`Simulation`](crate::Simulation) needs besides the cloth and colliders.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimConfig {
+    /// Time step of one call to [`step`](crate::Simulation::step), s. Default 1/60 s.
+    /// Must be finite and `> 0`.
+    pub dt: f32,
+    /// Substeps per step: each substep advances dt/substeps. Default 32. `1 ..= 100000`.
+    pub substeps: u32,
+    /// The integrator. Default [`Integrator::SymplecticEuler`].
+    pub integrator: Integrator,
+    /// Gravitational acceleration, m/s². Default (0, −9.81, 0).
+    pub gravity: Vec3,
+    /// The seed's global damping d in F = −d·v, per particle, N·s/m. Default 0.002 N·s/m.
+    pub damping: f32,
+    /// Spring parameters.
+    pub material: Material,
+    /// Air and wind.
+    pub air: Air,
+    /// Which force terms are on.
+    pub forces: ForceSwitches,
+    /// Instability thresholds.
+    pub limits: StabilityLimits,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        Self {
+            dt: 1.0 / 60.0,
+            substeps: 32,
+            integrator: Integrator::default(),
+            gravity: Vec3::new(0.0, -9.81, 0.0),
+            damping: 0.002,
+            material: Material::default(),
+            air: Air::default(),
+            forces: ForceSwitches::default(),
+            limits: StabilityLimits::default(),
+        }
+    }
+}
+
+/// Largest number of substeps per step.
+pub const MAX_SUBSTEPS: u32 = 100_000;
+
+impl SimConfig {
+    /// Checks every field; the error names the first bad one and its allowed range.
+    pub fn validate(&self) -> Result<()> {
+        check::positive("config.dt", self.dt)?;
+        if !(1..=MAX_SUBSTEPS).contains(&self.substeps) {
+            return Err(ClothError::invalid(
+                "config.substeps",
+                self.substeps,
+                format!("1 ..= {MAX_SUBSTEPS}"),
+            ));
+        }
+        check::finite_vec("config.gravity", self.gravity)?;
+        check::non_negative("config.damping", self.damping)?;
+        self.material.validate()?;
+        self.air.validate()?;
+        if !(self.limits.max_stretch_ratio.is_finite() && self.limits.max_stretch_ratio > 1.0) {
+            return Err(ClothError::invalid(
+                "config.limits.max_stretch_ratio",
+                self.limits.max_stretch_ratio,
+                "a finite number > 1",
+            ));
+        }
+        check::positive("config.limits.max_speed", self.limits.max_speed)?;
+        Ok(())
+    }
+
+    /// The substep length h = dt / substeps, s.
+    #[must_use]
+    pub fn substep_dt(&self) -> f32 {
+        self.dt / self.substeps as f32
+    }
+}

@@ -1,0 +1,185 @@
+//! Per-step diagnostics and the instability check.
+
+use glam::Vec3;
+
+use crate::collide::Collider;
+use crate::config::{Integrator, SimConfig};
+use crate::particles::Particles;
+use crate::topology::{SpringClass, SpringKind, Topology};
+
+/// What one step did, measured at its end. Cheap enough to leave on: one pass over the
+/// particles and one over the springs per step (not per substep).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StepStats {
+    /// Steps completed, this one included.
+    pub step: u64,
+    /// Simulated time at the end of the step, s.
+    pub time: f64,
+    /// Kinetic energy Σ ½m|v|², J (pinned particles included).
+    pub kinetic_energy: f64,
+    /// Gravitational potential energy −Σ m·g·x, J (zero at the origin).
+    pub gravitational_energy: f64,
+    /// Elastic energy of the springs Σ ½k(|L| − L0)², J.
+    pub spring_energy: f64,
+    /// Largest stretch strain (|L| − L0)/L0 per [`SpringClass`] (indexed by
+    /// `SpringClass as usize`); 0 when no spring of the class is stretched.
+    pub max_strain: [f32; 3],
+    /// Deepest penetration of a free particle below any collider's contact surface (surface
+    /// + thickness), m; 0 when none is inside.
+    pub max_penetration: f32,
+    /// Particle–collider contacts resolved in the step's last substep.
+    pub contacts: u32,
+}
+
+impl StepStats {
+    /// Kinetic + gravitational + spring energy, J.
+    #[must_use]
+    pub fn total_energy(&self) -> f64 {
+        self.kinetic_energy + self.gravitational_energy + self.spring_energy
+    }
+
+    /// Largest strain of one class.
+    #[must_use]
+    pub fn strain(&self, class: SpringClass) -> f32 {
+        self.max_strain[class as usize]
+    }
+}
+
+/// A bad state found by [`measure`].
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Instability {
+    pub particle: u32,
+    pub reason: String,
+}
+
+/// Measures the state and checks it against the stability limits.
+pub(crate) fn measure(
+    config: &SimConfig,
+    topology: &Topology,
+    particles: &Particles,
+    colliders: &[Collider],
+) -> (StepStats, Option<Instability>) {
+    let mut stats = StepStats::default();
+    let mut bad: Option<Instability> = None;
+    let g = if config.forces.gravity {
+        config.gravity
+    } else {
+        Vec3::ZERO
+    };
+    let max_speed_sq = config.limits.max_speed * config.limits.max_speed;
+    for (i, ((&x, &v), &m)) in particles
+        .position
+        .iter()
+        .zip(&particles.velocity)
+        .zip(&particles.mass)
+        .enumerate()
+    {
+        if bad.is_none() {
+            if !x.is_finite() {
+                bad = Some(Instability {
+                    particle: i as u32,
+                    reason: format!("position became non-finite ({x})"),
+                });
+            } else if !v.is_finite() {
+                bad = Some(Instability {
+                    particle: i as u32,
+                    reason: format!("velocity became non-finite ({v})"),
+                });
+            } else if v.length_squared() > max_speed_sq {
+                bad = Some(Instability {
+                    particle: i as u32,
+                    reason: format!(
+                        "speed {:.4e} m/s exceeds the limit of {} m/s",
+                        v.length(),
+                        config.limits.max_speed
+                    ),
+                });
+            }
+        }
+        let m = f64::from(m);
+        stats.kinetic_energy += 0.5 * m * f64::from(v.length_squared());
+        stats.gravitational_energy -= m * f64::from(g.dot(x));
+    }
+    for (i, &x) in particles.position.iter().enumerate() {
+        if particles.inv_mass[i] == 0.0 {
+            continue;
+        }
+        for c in colliders {
+            let (dist, _) = c.shape.distance(x);
+            stats.max_penetration = stats.max_penetration.max(c.thickness - dist);
+        }
+    }
+    for kind in SpringKind::ALL {
+        let k = f64::from(if config.forces.springs {
+            config.material.params(kind).stiffness
+        } else {
+            0.0
+        });
+        let class = kind.class() as usize;
+        for s in topology.springs_of(kind) {
+            let len = particles.position[s.a as usize].distance(particles.position[s.b as usize]);
+            let stretch = len - s.rest_length;
+            stats.spring_energy += 0.5 * k * f64::from(stretch) * f64::from(stretch);
+            let strain = stretch / s.rest_length;
+            stats.max_strain[class] = stats.max_strain[class].max(strain);
+            if bad.is_none() && len > config.limits.max_stretch_ratio * s.rest_length {
+                bad = Some(Instability {
+                    particle: s.a,
+                    reason: format!(
+                        "its {} spring to particle {} is stretched to {:.3}× its rest length \
+                         (limit {}×)",
+                        kind.name(),
+                        s.b,
+                        len / s.rest_length,
+                        config.limits.max_stretch_ratio
+                    ),
+                });
+            }
+        }
+    }
+    (stats, bad)
+}
+
+/// A conservative estimate of the largest substep at which symplectic Euler and Verlet stay
+/// stable for this material and smallest particle mass `min_mass` (kg): h < √(2m/Σk), from
+/// the Gershgorin bound ω² ≤ 2Σk/m on the stiffest particle, whose springs sum to
+/// Σk = 2k_warp + 2k_weft + 4k_shear + 4k_bend. Damping lowers it further.
+#[must_use]
+pub fn explicit_stability_limit(config: &SimConfig, min_mass: f32) -> f32 {
+    let m = &config.material;
+    let sum_k = 2.0 * m.warp.stiffness
+        + 2.0 * m.weft.stiffness
+        + 4.0 * m.shear.stiffness
+        + 4.0 * m.bend.stiffness;
+    if sum_k <= 0.0 {
+        return f32::INFINITY;
+    }
+    (2.0 * min_mass / sum_k).sqrt()
+}
+
+/// The most likely cause of an instability, in words, with what to change.
+pub(crate) fn instability_hint(config: &SimConfig, min_mass: f32) -> String {
+    let h = config.substep_dt();
+    if config.integrator == Integrator::ForwardEuler {
+        return format!(
+            "forward Euler gains energy every step (by 1 + (ωh)² for a spring of frequency ω), \
+             so it always blows up in the end; use symplectic Euler or Verlet, or a smaller \
+             substep than h = {h:.3e} s"
+        );
+    }
+    let limit = explicit_stability_limit(config, min_mass);
+    if h > limit {
+        format!(
+            "the time step is too large for the stiffness: substep h = {h:.3e} s, but this \
+             material needs h < ~{limit:.3e} s; raise `substeps` to at least {}, or lower \
+             the stiffness",
+            (config.dt / limit).ceil()
+        )
+    } else {
+        format!(
+            "the time step is likely too large for the stiffness or a collider moves too fast \
+             (substep h = {h:.3e} s, estimated limit {limit:.3e} s); raise `substeps` or \
+             lower the stiffness"
+        )
+    }
+}

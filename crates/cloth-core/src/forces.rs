@@ -1,0 +1,120 @@
+//! Force terms: gravity, Hooke springs, dashpots, the seed's global damping, and air.
+
+use glam::Vec3;
+
+use crate::config::SimConfig;
+use crate::topology::{SpringKind, Topology};
+
+/// Accumulates the total force on every particle (pinned ones included, so that pin reactions
+/// can be read off) into `force`, overwriting it.
+///
+/// Terms, each skipped when switched off in [`SimConfig::forces`]:
+/// 1. gravity m·g and global damping −d·v, per particle;
+/// 2. per spring, Hooke k(|L| − L0)·L/|L| and the dashpot c((v_b − v_a)·d)·d, applied to both
+///    ends with opposite signs (so internal forces sum to zero exactly);
+/// 3. per triangle, air drag and lift against `wind` (see [`crate::Air`]).
+pub(crate) fn accumulate(
+    config: &SimConfig,
+    topology: &Topology,
+    position: &[Vec3],
+    velocity: &[Vec3],
+    mass: &[f32],
+    wind: Vec3,
+    force: &mut [Vec3],
+) {
+    let sw = config.forces;
+    let gravity = if sw.gravity {
+        config.gravity
+    } else {
+        Vec3::ZERO
+    };
+    let damping = if sw.damping { config.damping } else { 0.0 };
+    for ((f, &m), &v) in force.iter_mut().zip(mass).zip(velocity) {
+        *f = m * gravity - damping * v;
+    }
+
+    if sw.springs || sw.dashpots {
+        for kind in SpringKind::ALL {
+            let p = config.material.params(kind);
+            let k = if sw.springs { p.stiffness } else { 0.0 };
+            let c = if sw.dashpots { p.damping } else { 0.0 };
+            if k == 0.0 && c == 0.0 {
+                continue;
+            }
+            for s in topology.springs_of(kind) {
+                let (a, b) = (s.a as usize, s.b as usize);
+                let l = position[b] - position[a];
+                let len = l.length();
+                if len <= 0.0 {
+                    continue;
+                }
+                let d = l / len;
+                let magnitude = k * (len - s.rest_length) + c * (velocity[b] - velocity[a]).dot(d);
+                let f = magnitude * d;
+                force[a] += f;
+                force[b] -= f;
+            }
+        }
+    }
+
+    if sw.air {
+        add_air(config, topology, position, velocity, wind, force);
+    }
+}
+
+fn add_air(
+    config: &SimConfig,
+    topology: &Topology,
+    position: &[Vec3],
+    velocity: &[Vec3],
+    wind: Vec3,
+    force: &mut [Vec3],
+) {
+    let air = &config.air;
+    if air.density == 0.0 || (air.drag_coefficient == 0.0 && air.lift_coefficient == 0.0) {
+        return;
+    }
+    for &[i, j, k] in topology.triangles() {
+        let (i, j, k) = (i as usize, j as usize, k as usize);
+        let f = triangle_air_force(
+            air.density,
+            air.drag_coefficient,
+            air.lift_coefficient,
+            [position[i], position[j], position[k]],
+            (velocity[i] + velocity[j] + velocity[k]) / 3.0,
+            wind,
+        ) / 3.0;
+        force[i] += f;
+        force[j] += f;
+        force[k] += f;
+    }
+}
+
+/// Total air force on one triangle with corners `x` moving at `v_tri` in `wind`: drag
+/// ½ρ|v_rel|²·C_d·A·cos θ along the normal and lift ½ρ|v_rel|²·C_l·A·|cos θ|·sin θ
+/// perpendicular to the flow (see [`crate::Air`]).
+#[must_use]
+pub fn triangle_air_force(
+    density: f32,
+    drag_coefficient: f32,
+    lift_coefficient: f32,
+    x: [Vec3; 3],
+    v_tri: Vec3,
+    wind: Vec3,
+) -> Vec3 {
+    let cross = (x[1] - x[0]).cross(x[2] - x[0]);
+    let cross_len = cross.length();
+    let v_rel = wind - v_tri;
+    let speed_sq = v_rel.length_squared();
+    if cross_len <= 0.0 || speed_sq <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let area = 0.5 * cross_len;
+    let n = cross / cross_len;
+    let speed = speed_sq.sqrt();
+    let v_hat = v_rel / speed;
+    let cos = n.dot(v_hat);
+    let q = 0.5 * density * speed_sq * area;
+    // drag: q·C_d·cos θ·n; lift: q·C_l·|cos θ|·sin θ·l̂ = q·C_l·cos θ·(n − cos θ·v̂).
+    q * cos * (drag_coefficient * n + lift_coefficient * (n - cos * v_hat))
+}

@@ -1,0 +1,67 @@
+//! Particle state in structure-of-arrays form.
+
+use glam::Vec3;
+
+/// The particles of a cloth, one entry per particle in each array (structure of arrays).
+///
+/// A particle with `inv_mass == 0` is pinned: no force moves it, and it follows its
+/// prescribed velocity (zero unless a pin target was set, see
+/// [`Simulation::set_pin_target`](crate::Simulation::set_pin_target)). `mass` keeps the
+/// particle's own mass while it is pinned so that unpinning restores it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Particles {
+    /// Positions, m.
+    pub position: Vec<Vec3>,
+    /// Velocities, m/s.
+    pub velocity: Vec<Vec3>,
+    /// Mass of each particle, kg (kept while pinned).
+    pub mass: Vec<f32>,
+    /// Inverse mass, 1/kg; 0 for a pinned particle.
+    pub inv_mass: Vec<f32>,
+}
+
+impl Particles {
+    /// Number of particles.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.position.len()
+    }
+
+    /// `true` when there are no particles.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.position.is_empty()
+    }
+
+    /// `true` when particle `i` is pinned.
+    #[must_use]
+    pub fn is_pinned(&self, i: usize) -> bool {
+        self.inv_mass[i] == 0.0
+    }
+
+    /// Total mass of all particles (pinned ones included), kg.
+    #[must_use]
+    pub fn total_mass(&self) -> f32 {
+        self.mass.iter().sum()
+    }
+
+    /// Total linear momentum Σ m·v, kg·m/s.
+    #[must_use]
+    pub fn momentum(&self) -> Vec3 {
+        self.mass
+            .iter()
+            .zip(&self.velocity)
+            .fold(Vec3::ZERO, |acc, (&m, &v)| acc + m * v)
+    }
+
+    /// Centre of mass, m.
+    #[must_use]
+    pub fn center_of_mass(&self) -> Vec3 {
+        let total = self.total_mass();
+        self.mass
+            .iter()
+            .zip(&self.position)
+            .fold(Vec3::ZERO, |acc, (&m, &x)| acc + m * x)
+            / total
+    }
+}

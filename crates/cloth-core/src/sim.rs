@@ -1,0 +1,366 @@
+//! The simulation: a cloth, its parameters and colliders, stepped in time.
+
+use glam::Vec3;
+
+use crate::collide::{Collider, ContactStats};
+use crate::config::SimConfig;
+use crate::diagnostics::{StepStats, instability_hint, measure};
+use crate::error::{ClothError, Result, check};
+use crate::grid::Cloth;
+use crate::particles::Particles;
+use crate::solver::{Solver, SubstepCtx};
+use crate::topology::Topology;
+
+/// A cloth simulation.
+///
+/// One [`step`](Self::step) advances [`SimConfig::dt`] in [`SimConfig::substeps`] equal
+/// substeps. Its stages, in order:
+/// 1. **snapshot**: keep the state so that a failed step can be undone;
+/// 2. **pins**: each pinned particle gets the velocity that takes it to its target (set with
+///    [`set_pin_target`](Self::set_pin_target)) by the end of the step, or zero;
+/// 3. **substeps**, each: move the colliders along their prescribed motion, then the
+///    integrator's substep (forces → integrate → contacts, for the explicit integrators);
+/// 4. **pins**: snap moved pins exactly onto their targets and stop them;
+/// 5. **diagnostics and instability check**: energies, strains, penetration, contacts; a
+///    non-finite value, a runaway speed or a spring past the stretch limit restores the
+///    snapshot and returns [`ClothError::Unstable`].
+///
+/// ```
+/// use cloth_core::{Collider, GridBuilder, SimConfig, Simulation};
+/// use glam::Vec3;
+///
+/// let cloth = GridBuilder::new(16, 16).origin(Vec3::new(0.0, 1.0, 0.0)).build()?;
+/// let mut sim = Simulation::new(cloth, SimConfig::default())?;
+/// sim.add_collider(Collider::sphere(Vec3::ZERO, 0.5))?;
+/// for _ in 0..30 {
+///     sim.step()?;
+/// }
+/// assert!(sim.stats().max_penetration <= 1e-6);
+/// # Ok::<(), cloth_core::ClothError>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct Simulation {
+    particles: Particles,
+    topology: Topology,
+    rows: usize,
+    cols: usize,
+    config: SimConfig,
+    colliders: Vec<Collider>,
+    /// Target position per particle for the current step's pin motion (pinned only).
+    pin_target: Vec<Option<Vec3>>,
+    solver: Solver,
+    /// State before the current step, restored if it fails.
+    backup_position: Vec<Vec3>,
+    backup_velocity: Vec<Vec3>,
+    backup_colliders: Vec<Collider>,
+    time: f64,
+    steps: u64,
+    stats: StepStats,
+    min_mass: f32,
+}
+
+impl Simulation {
+    /// A simulation of `cloth` with `config` (validated) and no colliders.
+    pub fn new(cloth: Cloth, config: SimConfig) -> Result<Self> {
+        config.validate()?;
+        let n = cloth.particles.len();
+        let min_mass = cloth
+            .particles
+            .mass
+            .iter()
+            .copied()
+            .fold(f32::INFINITY, f32::min);
+        let mut sim = Self {
+            particles: cloth.particles,
+            topology: cloth.topology,
+            rows: cloth.rows,
+            cols: cloth.cols,
+            config,
+            colliders: Vec::new(),
+            pin_target: vec![None; n],
+            solver: Solver::default(),
+            backup_position: Vec::with_capacity(n),
+            backup_velocity: Vec::with_capacity(n),
+            backup_colliders: Vec::new(),
+            time: 0.0,
+            steps: 0,
+            stats: StepStats::default(),
+            min_mass,
+        };
+        sim.refresh_stats();
+        Ok(sim)
+    }
+
+    /// The particle state.
+    #[must_use]
+    pub fn particles(&self) -> &Particles {
+        &self.particles
+    }
+
+    /// Springs and triangles.
+    #[must_use]
+    pub fn topology(&self) -> &Topology {
+        &self.topology
+    }
+
+    /// Grid size as `(rows, cols)`.
+    #[must_use]
+    pub fn grid_size(&self) -> (usize, usize) {
+        (self.rows, self.cols)
+    }
+
+    /// The parameters.
+    #[must_use]
+    pub fn config(&self) -> &SimConfig {
+        &self.config
+    }
+
+    /// Replaces the parameters (validated; on error nothing changes). Takes effect at the
+    /// next step.
+    pub fn set_config(&mut self, config: SimConfig) -> Result<()> {
+        config.validate()?;
+        self.config = config;
+        self.refresh_stats();
+        Ok(())
+    }
+
+    /// The colliders, at their current positions.
+    #[must_use]
+    pub fn colliders(&self) -> &[Collider] {
+        &self.colliders
+    }
+
+    /// Adds a collider (validated) and returns its index.
+    pub fn add_collider(&mut self, collider: Collider) -> Result<usize> {
+        let index = self.colliders.len();
+        self.colliders.push(collider.validate(index)?);
+        self.refresh_stats();
+        Ok(index)
+    }
+
+    /// Replaces collider `index` (validated).
+    pub fn set_collider(&mut self, index: usize, collider: Collider) -> Result<()> {
+        if index >= self.colliders.len() {
+            return Err(ClothError::invalid(
+                "collider index",
+                index,
+                format!(
+                    "0 ..= {} (there are {} colliders)",
+                    self.colliders.len() as i64 - 1,
+                    self.colliders.len()
+                ),
+            ));
+        }
+        self.colliders[index] = collider.validate(index)?;
+        Ok(())
+    }
+
+    /// Removes every collider.
+    pub fn clear_colliders(&mut self) {
+        self.colliders.clear();
+        self.refresh_stats();
+    }
+
+    /// Simulated time, s.
+    #[must_use]
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Steps completed.
+    #[must_use]
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// Diagnostics of the last completed step (or of the initial state before any step).
+    #[must_use]
+    pub fn stats(&self) -> &StepStats {
+        &self.stats
+    }
+
+    fn check_index(&self, name: &str, i: usize) -> Result<()> {
+        if i < self.particles.len() {
+            Ok(())
+        } else {
+            Err(ClothError::IndexOutOfRange {
+                name: name.into(),
+                index: i,
+                len: self.particles.len(),
+            })
+        }
+    }
+
+    /// Pins particle `i` where it is, at rest.
+    pub fn pin(&mut self, i: usize) -> Result<()> {
+        self.check_index("pin", i)?;
+        self.particles.inv_mass[i] = 0.0;
+        self.particles.velocity[i] = Vec3::ZERO;
+        Ok(())
+    }
+
+    /// Unpins particle `i`; it keeps its current velocity and gets its own mass back.
+    pub fn unpin(&mut self, i: usize) -> Result<()> {
+        self.check_index("unpin", i)?;
+        self.particles.inv_mass[i] = 1.0 / self.particles.mass[i];
+        self.pin_target[i] = None;
+        Ok(())
+    }
+
+    /// Moves pinned particle `i` to `target` (m) over the next step, at constant velocity:
+    /// an animated attachment. Call it before every step to follow a path.
+    pub fn set_pin_target(&mut self, i: usize, target: Vec3) -> Result<()> {
+        self.check_index("set_pin_target", i)?;
+        check::finite_vec("set_pin_target.target", target)?;
+        if !self.particles.is_pinned(i) {
+            return Err(ClothError::invalid(
+                "set_pin_target index",
+                i,
+                "a pinned particle (pin it first)",
+            ));
+        }
+        self.pin_target[i] = Some(target);
+        Ok(())
+    }
+
+    /// Teleports particle `i` to `position` (m).
+    pub fn set_position(&mut self, i: usize, position: Vec3) -> Result<()> {
+        self.check_index("set_position", i)?;
+        check::finite_vec("set_position.position", position)?;
+        self.particles.position[i] = position;
+        Ok(())
+    }
+
+    /// Sets the velocity of particle `i` (m/s). Pinned particles ignore it until unpinned.
+    pub fn set_velocity(&mut self, i: usize, velocity: Vec3) -> Result<()> {
+        self.check_index("set_velocity", i)?;
+        check::finite_vec("set_velocity.velocity", velocity)?;
+        if !self.particles.is_pinned(i) {
+            self.particles.velocity[i] = velocity;
+        }
+        Ok(())
+    }
+
+    /// The force each pin exerts on the cloth to hold its particle, N: for pinned particle i,
+    /// R_i = −F_i, with F_i every other force on it at the current state (springs, gravity,
+    /// damping, air). Returns `(particle, force)` pairs in index order. At rest, the pins
+    /// together carry the whole weight: Σ R_i = −Σ m·g.
+    pub fn pin_reactions(&mut self) -> Vec<(u32, Vec3)> {
+        let wind = self.config.air.wind_at(self.time);
+        let force = self
+            .solver
+            .forces(&self.config, &self.topology, &self.particles, wind);
+        self.particles
+            .inv_mass
+            .iter()
+            .enumerate()
+            .filter(|&(_, &w)| w == 0.0)
+            .map(|(i, _)| (i as u32, -force[i]))
+            .collect()
+    }
+
+    /// Total force of the springs, dashpots, damping and air on each particle right now
+    /// (gravity included), N. Useful for force-balance checks.
+    pub fn forces(&mut self) -> &[Vec3] {
+        let wind = self.config.air.wind_at(self.time);
+        self.solver
+            .forces(&self.config, &self.topology, &self.particles, wind)
+    }
+
+    fn refresh_stats(&mut self) {
+        let (mut stats, _) = measure(
+            &self.config,
+            &self.topology,
+            &self.particles,
+            &self.colliders,
+        );
+        stats.step = self.steps;
+        stats.time = self.time;
+        self.stats = stats;
+    }
+
+    /// Advances one step of [`SimConfig::dt`] seconds (see the type's docs for the stages).
+    ///
+    /// # Errors
+    /// [`ClothError::Unstable`] when the step would leave a non-finite or runaway state; the
+    /// simulation then keeps the state it had before the call.
+    pub fn step(&mut self) -> Result<StepStats> {
+        // 1. snapshot
+        self.backup_position.clone_from(&self.particles.position);
+        self.backup_velocity.clone_from(&self.particles.velocity);
+        self.backup_colliders.clone_from(&self.colliders);
+
+        // 2. pins
+        let dt = self.config.dt;
+        for (i, target) in self.pin_target.iter().enumerate() {
+            if self.particles.inv_mass[i] != 0.0 {
+                continue;
+            }
+            self.particles.velocity[i] = match target {
+                Some(t) => (*t - self.particles.position[i]) / dt,
+                None => Vec3::ZERO,
+            };
+        }
+
+        // 3. substeps
+        let h = self.config.substep_dt();
+        let mut contacts = ContactStats::default();
+        for s in 0..self.config.substeps {
+            let t = self.time + f64::from(h) * f64::from(s);
+            for c in &mut self.colliders {
+                c.advance(h);
+            }
+            self.solver.substep(
+                self.config.integrator,
+                SubstepCtx {
+                    particles: &mut self.particles,
+                    topology: &self.topology,
+                    config: &self.config,
+                    colliders: &self.colliders,
+                    wind: self.config.air.wind_at(t),
+                    h,
+                    contacts: &mut contacts,
+                },
+            );
+        }
+
+        // 4. pins
+        for (i, target) in self.pin_target.iter_mut().enumerate() {
+            if let Some(t) = target.take() {
+                if self.particles.inv_mass[i] == 0.0 {
+                    self.particles.position[i] = t;
+                    self.particles.velocity[i] = Vec3::ZERO;
+                }
+            } else if self.particles.inv_mass[i] == 0.0 {
+                self.particles.velocity[i] = Vec3::ZERO;
+            }
+        }
+
+        // 5. diagnostics and instability check
+        let (mut stats, bad) = measure(
+            &self.config,
+            &self.topology,
+            &self.particles,
+            &self.colliders,
+        );
+        if let Some(bad) = bad {
+            self.particles.position.clone_from(&self.backup_position);
+            self.particles.velocity.clone_from(&self.backup_velocity);
+            self.colliders.clone_from(&self.backup_colliders);
+            return Err(ClothError::Unstable {
+                step: self.steps,
+                time: self.time,
+                particle: bad.particle,
+                reason: bad.reason,
+                hint: instability_hint(&self.config, self.min_mass),
+            });
+        }
+        self.steps += 1;
+        self.time += f64::from(dt);
+        stats.step = self.steps;
+        stats.time = self.time;
+        stats.contacts = contacts.contacts;
+        self.stats = stats;
+        Ok(stats)
+    }
+}
