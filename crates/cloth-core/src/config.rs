@@ -26,27 +26,29 @@ impl SpringParams {
 
 /// The fabric: spring parameters per kind.
 ///
-/// Defaults: structural 500 N/m, shear 100 N/m, bend 20 N/m, each with a 0.1 N·s/m dashpot,
-/// warp and weft alike.
+/// Defaults: structural 200 N/m with a 0.01 N·s/m dashpot, shear 50 N/m and 0.005 N·s/m,
+/// bend 5 N/m and 0.002 N·s/m, warp and weft alike. With the default 32 substeps of a 1/60 s
+/// step, symplectic Euler is stable for these on a 1 m, 0.2 kg/m² cloth up to about 40 × 40
+/// particles; finer grids need more substeps (the error of an unstable step says how many).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Material {
-    /// Structural springs along the warp (between rows). Default 500 N/m, 0.1 N·s/m.
+    /// Structural springs along the warp (between rows). Default 200 N/m, 0.01 N·s/m.
     pub warp: SpringParams,
-    /// Structural springs along the weft (between columns). Default 500 N/m, 0.1 N·s/m.
+    /// Structural springs along the weft (between columns). Default 200 N/m, 0.01 N·s/m.
     pub weft: SpringParams,
-    /// Shear springs (cell diagonals). Default 100 N/m, 0.1 N·s/m.
+    /// Shear springs (cell diagonals). Default 50 N/m, 0.005 N·s/m.
     pub shear: SpringParams,
-    /// Bending springs (two apart). Default 20 N/m, 0.1 N·s/m.
+    /// Bending springs (two apart). Default 5 N/m, 0.002 N·s/m.
     pub bend: SpringParams,
 }
 
 impl Default for Material {
     fn default() -> Self {
         Self {
-            warp: SpringParams::new(500.0, 0.1),
-            weft: SpringParams::new(500.0, 0.1),
-            shear: SpringParams::new(100.0, 0.1),
-            bend: SpringParams::new(20.0, 0.1),
+            warp: SpringParams::new(200.0, 0.01),
+            weft: SpringParams::new(200.0, 0.01),
+            shear: SpringParams::new(50.0, 0.005),
+            bend: SpringParams::new(5.0, 0.002),
         }
     }
 }

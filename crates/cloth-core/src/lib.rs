@@ -48,6 +48,7 @@ pub mod error;
 pub mod forces;
 pub mod grid;
 pub mod particles;
+pub mod presets;
 mod sim;
 mod solver;
 pub mod topology;
@@ -63,3 +64,8 @@ pub use grid::{Cloth, Corner, Edge, GridBuilder, Mass, Orientation};
 pub use particles::Particles;
 pub use sim::Simulation;
 pub use topology::{Spring, SpringClass, SpringKind, Topology};
+
+/// The README's examples, compiled and run as doc-tests.
+#[doc = include_str!("../../../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;

@@ -1,6 +1,6 @@
 //! Particle state in structure-of-arrays form.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 /// The particles of a cloth, one entry per particle in each array (structure of arrays).
 ///
@@ -42,7 +42,9 @@ impl Particles {
     /// Total mass of all particles (pinned ones included), kg.
     #[must_use]
     pub fn total_mass(&self) -> f32 {
-        self.mass.iter().sum()
+        // Summed in f64: an f32 running sum stalls once it is 2^24 times a particle's mass
+        // (a uniform 8192 × 8192 grid would report 30% of its mass).
+        self.mass.iter().map(|&m| f64::from(m)).sum::<f64>() as f32
     }
 
     /// Total linear momentum Σ m·v, kg·m/s.
@@ -51,17 +53,22 @@ impl Particles {
         self.mass
             .iter()
             .zip(&self.velocity)
-            .fold(Vec3::ZERO, |acc, (&m, &v)| acc + m * v)
+            .fold(DVec3::ZERO, |acc, (&m, &v)| {
+                acc + f64::from(m) * v.as_dvec3()
+            })
+            .as_vec3()
     }
 
     /// Centre of mass, m.
     #[must_use]
     pub fn center_of_mass(&self) -> Vec3 {
-        let total = self.total_mass();
-        self.mass
+        let (weighted, total) = self
+            .mass
             .iter()
             .zip(&self.position)
-            .fold(Vec3::ZERO, |acc, (&m, &x)| acc + m * x)
-            / total
+            .fold((DVec3::ZERO, 0.0_f64), |(acc, total), (&m, &x)| {
+                (acc + f64::from(m) * x.as_dvec3(), total + f64::from(m))
+            });
+        (weighted / total).as_vec3()
     }
 }

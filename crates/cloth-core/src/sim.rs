@@ -324,9 +324,10 @@ impl Simulation {
             );
         }
 
-        // 4. pins
-        for (i, target) in self.pin_target.iter_mut().enumerate() {
-            if let Some(t) = target.take() {
+        // 4. pins (the targets are cleared only once the step is accepted, so that a failed
+        //    step leaves them set, like the rest of the state)
+        for (i, target) in self.pin_target.iter().enumerate() {
+            if let Some(t) = *target {
                 if self.particles.inv_mass[i] == 0.0 {
                     self.particles.position[i] = t;
                     self.particles.velocity[i] = Vec3::ZERO;
@@ -355,6 +356,7 @@ impl Simulation {
                 hint: instability_hint(&self.config, self.min_mass),
             });
         }
+        self.pin_target.fill(None);
         self.steps += 1;
         self.time += f64::from(dt);
         stats.step = self.steps;
