@@ -219,11 +219,40 @@ pub enum Integrator {
     /// Position Verlet (drift–kick–drift, Störmer–Verlet in its position form): x += ½h·v,
     /// v += h·a(x, v), x += ½h·v. Second order and symplectic, one force evaluation per step.
     Verlet,
+    /// Linearised backward Euler (Baraff & Witkin 1998): one linear solve per substep by
+    /// filtered preconditioned conjugate gradients ([`ImplicitSettings`]). Stable at large
+    /// steps; dissipates energy.
+    ImplicitEuler,
+    /// Extended position-based dynamics (Macklin et al. 2016, 2019): springs as compliant
+    /// distance constraints with compliance 1/k, Gauss–Seidel sweeps ([`XpbdSettings`]).
+    /// Stable at any step; stiffness converges to the material's as substeps grow.
+    Xpbd,
 }
 
 impl Integrator {
     /// All integrators.
-    pub const ALL: [Integrator; 3] = [Self::ForwardEuler, Self::SymplecticEuler, Self::Verlet];
+    pub const ALL: [Integrator; 5] = [
+        Self::ForwardEuler,
+        Self::SymplecticEuler,
+        Self::Verlet,
+        Self::ImplicitEuler,
+        Self::Xpbd,
+    ];
+
+    /// The explicit, force-based integrators (stable only below a step set by stiffness).
+    pub const EXPLICIT: [Integrator; 3] = [Self::ForwardEuler, Self::SymplecticEuler, Self::Verlet];
+
+    /// The integrator called `name` (see [`Integrator::name`]).
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|i| i.name() == name)
+    }
+
+    /// `true` for the explicit integrators, whose stable step is bounded by the stiffness.
+    #[must_use]
+    pub fn is_explicit(self) -> bool {
+        Self::EXPLICIT.contains(&self)
+    }
 
     /// Short name.
     #[must_use]
@@ -232,6 +261,53 @@ impl Integrator {
             Self::ForwardEuler => "forward-euler",
             Self::SymplecticEuler => "symplectic-euler",
             Self::Verlet => "verlet",
+            Self::ImplicitEuler => "implicit-euler",
+            Self::Xpbd => "xpbd",
+        }
+    }
+}
+
+/// Settings of the implicit Euler solver's conjugate gradient.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImplicitSettings {
+    /// Relative residual (preconditioned norm) at which CG stops, in (0, 1). Default 1e-3.
+    pub tolerance: f32,
+    /// Iteration cap per substep, `>= 1`. Default 200. A solve that hits it is reported in
+    /// [`StepStats::solver`](crate::StepStats::solver) as not converged.
+    pub max_iterations: u32,
+}
+
+impl Default for ImplicitSettings {
+    fn default() -> Self {
+        Self {
+            tolerance: 1e-3,
+            max_iterations: 200,
+        }
+    }
+}
+
+/// Settings of the XPBD solver.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct XpbdSettings {
+    /// Gauss–Seidel sweeps per substep, `>= 1`. Default 1: Macklin et al. 2019 show that, for
+    /// the same cost, more substeps with one sweep each give a stiffer, more accurate cloth
+    /// than fewer substeps with many sweeps.
+    pub iterations: u32,
+    /// Long-range attachments ("tethers", as in NvCloth): every free particle may be at most
+    /// its rest distance to the nearest pinned particle (times 1 + `tether_slack`) away from
+    /// it. Stops stretchy hanging cloth. Default off.
+    pub tethers: bool,
+    /// Extra length allowed to tethers, as a fraction of their rest length, `>= 0`. Default
+    /// 0.02.
+    pub tether_slack: f32,
+}
+
+impl Default for XpbdSettings {
+    fn default() -> Self {
+        Self {
+            iterations: 1,
+            tethers: false,
+            tether_slack: 0.02,
         }
     }
 }
@@ -277,6 +353,15 @@ pub struct SimConfig {
     pub forces: ForceSwitches,
     /// Instability thresholds.
     pub limits: StabilityLimits,
+    /// Provot-style strain limiting for the force-based integrators: after each substep,
+    /// structural and shear springs stretched past (1 + limit)·L0 are shortened back to it
+    /// (positions and velocities corrected, mass-weighted). `None` (the default) is off;
+    /// otherwise `> 0`, e.g. 0.1 for 10 %.
+    pub strain_limit: Option<f32>,
+    /// Implicit Euler settings.
+    pub implicit: ImplicitSettings,
+    /// XPBD settings.
+    pub xpbd: XpbdSettings,
 }
 
 impl Default for SimConfig {
@@ -291,6 +376,9 @@ impl Default for SimConfig {
             air: Air::default(),
             forces: ForceSwitches::default(),
             limits: StabilityLimits::default(),
+            strain_limit: None,
+            implicit: ImplicitSettings::default(),
+            xpbd: XpbdSettings::default(),
         }
     }
 }
@@ -321,6 +409,34 @@ impl SimConfig {
             ));
         }
         check::positive("config.limits.max_speed", self.limits.max_speed)?;
+        if let Some(limit) = self.strain_limit {
+            check::positive("config.strain_limit", limit)?;
+        }
+        if !(self.implicit.tolerance.is_finite()
+            && self.implicit.tolerance > 0.0
+            && self.implicit.tolerance < 1.0)
+        {
+            return Err(ClothError::invalid(
+                "config.implicit.tolerance",
+                self.implicit.tolerance,
+                "a number in (0, 1)",
+            ));
+        }
+        if self.implicit.max_iterations == 0 {
+            return Err(ClothError::invalid(
+                "config.implicit.max_iterations",
+                self.implicit.max_iterations,
+                "an integer >= 1",
+            ));
+        }
+        if !(1..=1000).contains(&self.xpbd.iterations) {
+            return Err(ClothError::invalid(
+                "config.xpbd.iterations",
+                self.xpbd.iterations,
+                "1 ..= 1000",
+            ));
+        }
+        check::non_negative("config.xpbd.tether_slack", self.xpbd.tether_slack)?;
         Ok(())
     }
 

@@ -29,6 +29,31 @@ pub struct StepStats {
     pub max_penetration: f32,
     /// Particle–collider contacts resolved in the step's last substep.
     pub contacts: u32,
+    /// What the iterative solver did, for the integrators that have one.
+    pub solver: SolverStats,
+}
+
+/// Iterative-solver figures of one step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolverStats {
+    /// Implicit Euler: the most CG iterations any substep took. XPBD: Gauss–Seidel sweeps per
+    /// substep. 0 for the explicit integrators.
+    pub iterations: u32,
+    /// Implicit Euler: the largest final relative CG residual of any substep. 0 otherwise.
+    pub residual: f32,
+    /// `false` when some substep's CG stopped at the iteration cap before reaching the
+    /// tolerance (a reported condition: the step is still taken, but less accurate).
+    pub converged: bool,
+}
+
+impl Default for SolverStats {
+    fn default() -> Self {
+        Self {
+            iterations: 0,
+            residual: 0.0,
+            converged: true,
+        }
+    }
 }
 
 impl StepStats {
@@ -160,6 +185,14 @@ pub fn explicit_stability_limit(config: &SimConfig, min_mass: f32) -> f32 {
 /// The most likely cause of an instability, in words, with what to change.
 pub(crate) fn instability_hint(config: &SimConfig, min_mass: f32) -> String {
     let h = config.substep_dt();
+    if !config.integrator.is_explicit() {
+        return format!(
+            "{} is stable at large steps, so the state itself is extreme: a collider or pin \
+             moving too fast, or an extreme stiffness or wind; raise `substeps` or check the \
+             scene (substep h = {h:.3e} s)",
+            config.integrator.name()
+        );
+    }
     if config.integrator == Integrator::ForwardEuler {
         return format!(
             "forward Euler gains energy every step (by 1 + (ωh)² for a spring of frequency ω), \

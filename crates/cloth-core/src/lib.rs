@@ -55,9 +55,10 @@ pub mod topology;
 
 pub use collide::{Collider, Friction, Shape};
 pub use config::{
-    Air, ForceSwitches, Gust, Integrator, Material, SimConfig, SpringParams, StabilityLimits,
+    Air, ForceSwitches, Gust, ImplicitSettings, Integrator, Material, SimConfig, SpringParams,
+    StabilityLimits, XpbdSettings,
 };
-pub use diagnostics::StepStats;
+pub use diagnostics::{SolverStats, StepStats};
 pub use error::{ClothError, Result};
 pub use glam;
 pub use grid::{Cloth, Corner, Edge, GridBuilder, Mass, Orientation};

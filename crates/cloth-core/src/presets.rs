@@ -7,7 +7,7 @@ use crate::collide::{Collider, Friction};
 use crate::config::{Air, Integrator, Material, SimConfig, SpringParams};
 use crate::diagnostics::explicit_stability_limit;
 use crate::error::Result;
-use crate::grid::{Corner, GridBuilder, Mass, Orientation};
+use crate::grid::{Edge, GridBuilder, Mass, Orientation};
 use crate::sim::Simulation;
 
 /// Substeps per step that keep symplectic Euler and Verlet inside the stability estimate of
@@ -18,10 +18,21 @@ pub fn stable_substeps(config: &SimConfig, min_mass: f32) -> u32 {
     ((1.25 * config.dt / limit).ceil() as u32).clamp(1, crate::config::MAX_SUBSTEPS)
 }
 
+/// Chooses the substeps (and XPBD's tethers) of a preset for `config.integrator`: the explicit
+/// integrators get [`stable_substeps`]; implicit Euler one substep per 1/60 s step (it is
+/// stable at any step); XPBD 20 substeps of one sweep each, with tethers to the pins.
+pub fn tune_for_integrator(config: &mut SimConfig, min_mass: f32) {
+    config.substeps = match config.integrator {
+        Integrator::ImplicitEuler => (config.dt * 60.0).ceil().max(1.0) as u32,
+        Integrator::Xpbd => (config.dt * 60.0 * 20.0).ceil().max(1.0) as u32,
+        _ => stable_substeps(config, min_mass),
+    };
+    config.xpbd.tethers = true;
+}
+
 /// The seed paper's scene: an `n × n` cloth, 1.2 m square, 0.2 kg/m², dropped flat from
 /// 0.55 m onto a ball of radius 0.3 m resting on the ground (y = −0.3), with friction
-/// μ_s = 0.6, μ_k = 0.5 on both. Substeps are chosen for stability with `integrator`'s
-/// explicit estimate.
+/// μ_s = 0.6, μ_k = 0.5 on both. Substeps from [`tune_for_integrator`].
 pub fn drape(n: usize, integrator: Integrator) -> Result<Simulation> {
     let cloth = GridBuilder::new(n, n)
         .size(1.2, 1.2)
@@ -44,7 +55,7 @@ pub fn drape(n: usize, integrator: Integrator) -> Result<Simulation> {
         .iter()
         .copied()
         .fold(f32::INFINITY, f32::min);
-    config.substeps = stable_substeps(&config, min_mass);
+    tune_for_integrator(&mut config, min_mass);
     let mut sim = Simulation::new(cloth, config)?;
     let friction = Friction::new(0.6, 0.5);
     sim.add_collider(
@@ -60,16 +71,15 @@ pub fn drape(n: usize, integrator: Integrator) -> Result<Simulation> {
     Ok(sim)
 }
 
-/// A curtain: an `n × n` vertical cloth, 1 m square, 0.2 kg/m², hanging from two pinned
-/// top corners with its top edge at y = 1.5 m, in still air.
+/// A curtain: an `n × n` vertical cloth, 1 m square, 0.2 kg/m², pinned along its top edge at
+/// y = 1.5 m, in still air.
 pub fn hanging(n: usize, integrator: Integrator) -> Result<Simulation> {
     let cloth = GridBuilder::new(n, n)
         .size(1.0, 1.0)
         .orientation(Orientation::Vertical)
         .origin(Vec3::new(0.0, 1.0, 0.0))
         .mass(Mass::ArealDensity(0.2))
-        .pin_corner(Corner::TopLeft)
-        .pin_corner(Corner::TopRight)
+        .pin_edge(Edge::Top)
         .build()?;
     let mut config = SimConfig {
         integrator,
@@ -87,7 +97,7 @@ pub fn hanging(n: usize, integrator: Integrator) -> Result<Simulation> {
         .iter()
         .copied()
         .fold(f32::INFINITY, f32::min);
-    config.substeps = stable_substeps(&config, min_mass);
+    tune_for_integrator(&mut config, min_mass);
     Simulation::new(cloth, config)
 }
 

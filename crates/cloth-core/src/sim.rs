@@ -57,6 +57,8 @@ pub struct Simulation {
     steps: u64,
     stats: StepStats,
     min_mass: f32,
+    /// Positions of the cloth as built (its rest shape), for tethers.
+    rest_position: Vec<Vec3>,
 }
 
 impl Simulation {
@@ -86,7 +88,9 @@ impl Simulation {
             steps: 0,
             stats: StepStats::default(),
             min_mass,
+            rest_position: Vec::new(),
         };
+        sim.rest_position.clone_from(&sim.particles.position);
         sim.refresh_stats();
         Ok(sim)
     }
@@ -173,10 +177,30 @@ impl Simulation {
         self.steps
     }
 
-    /// Diagnostics of the last completed step (or of the initial state before any step).
+    /// Diagnostics of the last completed step; before the first step, of the state when the
+    /// simulation was created (or its config or colliders last changed). Edits between steps
+    /// (`set_position`, `pin`, …) are not reflected until the next step: use
+    /// [`measure`](Self::measure) for the current state.
     #[must_use]
     pub fn stats(&self) -> &StepStats {
         &self.stats
+    }
+
+    /// Diagnostics of the current state, computed now (one pass over particles and springs).
+    /// `contacts` and `solver` are those of the last step.
+    #[must_use]
+    pub fn measure(&self) -> StepStats {
+        let (mut stats, _) = measure(
+            &self.config,
+            &self.topology,
+            &self.particles,
+            &self.colliders,
+        );
+        stats.step = self.steps;
+        stats.time = self.time;
+        stats.contacts = self.stats.contacts;
+        stats.solver = self.stats.solver;
+        stats
     }
 
     fn check_index(&self, name: &str, i: usize) -> Result<()> {
@@ -303,6 +327,7 @@ impl Simulation {
         }
 
         // 3. substeps
+        self.solver.begin_step();
         let h = self.config.substep_dt();
         let mut contacts = ContactStats::default();
         for s in 0..self.config.substeps {
@@ -320,6 +345,7 @@ impl Simulation {
                     wind: self.config.air.wind_at(t),
                     h,
                     contacts: &mut contacts,
+                    rest: &self.rest_position,
                 },
             );
         }
@@ -362,6 +388,7 @@ impl Simulation {
         stats.step = self.steps;
         stats.time = self.time;
         stats.contacts = contacts.contacts;
+        stats.solver = self.solver.stats();
         self.stats = stats;
         Ok(stats)
     }

@@ -23,8 +23,8 @@ fn forces(ctx: &SubstepCtx<'_>, force: &mut [Vec3]) {
 }
 
 /// x ← x + h·v; v ← v + h·F/m(x, v) (both from the old state); contacts.
-pub(super) fn forward_euler(ctx: SubstepCtx<'_>, force: &mut [Vec3]) {
-    forces(&ctx, force);
+pub(super) fn forward_euler(ctx: &mut SubstepCtx<'_>, force: &mut [Vec3]) {
+    forces(ctx, force);
     let h = ctx.h;
     let p = &mut *ctx.particles;
     for (((x, v), &w), &f) in p
@@ -41,8 +41,8 @@ pub(super) fn forward_euler(ctx: SubstepCtx<'_>, force: &mut [Vec3]) {
 }
 
 /// v ← v + h·F/m(x, v); x ← x + h·v (the new v); contacts.
-pub(super) fn symplectic_euler(ctx: SubstepCtx<'_>, force: &mut [Vec3]) {
-    forces(&ctx, force);
+pub(super) fn symplectic_euler(ctx: &mut SubstepCtx<'_>, force: &mut [Vec3]) {
+    forces(ctx, force);
     let h = ctx.h;
     let p = &mut *ctx.particles;
     for (((x, v), &w), &f) in p
@@ -59,7 +59,7 @@ pub(super) fn symplectic_euler(ctx: SubstepCtx<'_>, force: &mut [Vec3]) {
 }
 
 /// Drift–kick–drift: x ← x + ½h·v; v ← v + h·F/m(x, v); x ← x + ½h·v; contacts.
-pub(super) fn position_verlet(ctx: SubstepCtx<'_>, force: &mut [Vec3]) {
+pub(super) fn position_verlet(ctx: &mut SubstepCtx<'_>, force: &mut [Vec3]) {
     let half = 0.5 * ctx.h;
     for (x, &v) in ctx
         .particles
@@ -69,7 +69,7 @@ pub(super) fn position_verlet(ctx: SubstepCtx<'_>, force: &mut [Vec3]) {
     {
         *x += half * v;
     }
-    forces(&ctx, force);
+    forces(ctx, force);
     let h = ctx.h;
     let p = &mut *ctx.particles;
     for (((x, v), &w), &f) in p

@@ -6,13 +6,16 @@
 //! not fit "forces then integrate" (implicit, constraint-based) plug in the same way.
 
 mod explicit;
+mod implicit;
+mod xpbd;
 
 use glam::Vec3;
 
 use crate::collide::{Collider, ContactStats};
 use crate::config::{Integrator, SimConfig};
+use crate::diagnostics::SolverStats;
 use crate::particles::Particles;
-use crate::topology::Topology;
+use crate::topology::{SpringKind, Topology};
 
 /// What one substep acts on.
 pub(crate) struct SubstepCtx<'a> {
@@ -30,6 +33,37 @@ pub(crate) struct SubstepCtx<'a> {
     pub h: f32,
     /// Contact counts of the substep (written by the integrator).
     pub contacts: &'a mut ContactStats,
+    /// Rest-shape positions (for tethers).
+    pub rest: &'a [Vec3],
+}
+
+/// Provot-style strain limiting (Provot 1995): every structural and shear spring stretched
+/// past `(1 + limit)·L0` is shortened back to that length by moving its ends along the spring,
+/// mass-weighted (a pinned end does not move); the velocities change by the same displacement
+/// divided by `h`, so the correction does not bounce back. One pass in storage order.
+pub(crate) fn limit_strain(topology: &Topology, particles: &mut Particles, limit: f32, h: f32) {
+    let inv_h = 1.0 / h;
+    for kind in [SpringKind::Warp, SpringKind::Weft, SpringKind::Shear] {
+        for s in topology.springs_of(kind) {
+            let (a, b) = (s.a as usize, s.b as usize);
+            let (wa, wb) = (particles.inv_mass[a], particles.inv_mass[b]);
+            let w = wa + wb;
+            if w == 0.0 {
+                continue;
+            }
+            let l = particles.position[b] - particles.position[a];
+            let len = l.length();
+            let max = (1.0 + limit) * s.rest_length;
+            if len <= max {
+                continue;
+            }
+            let correction = (len - max) / (len * w) * l;
+            particles.position[a] += wa * correction;
+            particles.position[b] -= wb * correction;
+            particles.velocity[a] += (wa * inv_h) * correction;
+            particles.velocity[b] -= (wb * inv_h) * correction;
+        }
+    }
 }
 
 /// Reusable scratch of the integrators. Allocated once per particle count; no allocation
@@ -38,19 +72,50 @@ pub(crate) struct SubstepCtx<'a> {
 pub(crate) struct Solver {
     /// Force per particle, N.
     force: Vec<Vec3>,
+    implicit: implicit::ImplicitScratch,
+    xpbd: xpbd::XpbdScratch,
+    /// Solver figures accumulated over the current step.
+    stats: SolverStats,
 }
 
 impl Solver {
-    /// Advances one substep with `integrator`.
-    pub fn substep(&mut self, integrator: Integrator, ctx: SubstepCtx<'_>) {
+    /// Starts a step: resets the solver figures.
+    pub fn begin_step(&mut self) {
+        self.stats = SolverStats::default();
+    }
+
+    /// The solver figures of the step so far.
+    pub fn stats(&self) -> SolverStats {
+        self.stats
+    }
+
+    /// Advances one substep with `integrator`, then (for the force-based integrators) the
+    /// optional strain-limiting pass.
+    pub fn substep(&mut self, integrator: Integrator, mut ctx: SubstepCtx<'_>) {
         let n = ctx.particles.len();
         if self.force.len() != n {
             self.force.resize(n, Vec3::ZERO);
         }
+        let ctx = &mut ctx;
         match integrator {
             Integrator::ForwardEuler => explicit::forward_euler(ctx, &mut self.force),
             Integrator::SymplecticEuler => explicit::symplectic_euler(ctx, &mut self.force),
             Integrator::Verlet => explicit::position_verlet(ctx, &mut self.force),
+            Integrator::ImplicitEuler => {
+                let mut cg = implicit::CgStats::default();
+                implicit::substep(ctx, &mut self.implicit, &mut cg);
+                self.stats.iterations = self.stats.iterations.max(cg.iterations);
+                self.stats.residual = self.stats.residual.max(cg.residual);
+                self.stats.converged &= cg.converged;
+            }
+            Integrator::Xpbd => {
+                self.stats.iterations = ctx.config.xpbd.iterations;
+                xpbd::substep(ctx, &mut self.xpbd);
+                return;
+            }
+        }
+        if let Some(limit) = ctx.config.strain_limit {
+            limit_strain(ctx.topology, ctx.particles, limit, ctx.h);
         }
     }
 

@@ -1,0 +1,245 @@
+//! Extended position-based dynamics (XPBD), after Macklin, Müller & Chentanez 2016, with the
+//! many-substeps scheme of Macklin et al. 2019, "Small Steps in Physics Simulation".
+//!
+//! One substep of length h:
+//! 1. predict: v ← v + h·(g + f_ext/m) (global damping and air are the external forces),
+//!    x_prev ← x, x ← x + h·v;
+//! 2. `iterations` Gauss–Seidel sweeps, each over: every spring as a distance constraint
+//!    C = |x_a − x_b| − L0 with compliance α = 1/k (so a material gives the same cloth as with
+//!    the force-based integrators) and the dashpot as XPBD constraint damping β = c, in the
+//!    fixed storage order (kind by kind, row-major); then the optional long-range tethers; then
+//!    collider contacts as position constraints with position-level Coulomb friction;
+//! 3. velocities from positions: v ← (x − x_prev)/h.
+//!
+//! The sweep order is fixed, so results are deterministic. Springs of one kind on a grid
+//! touch each particle at most twice per row parity, which is what a later graph-colouring
+//! (parallel) sweep needs; the storage is already grouped per kind for it.
+
+use glam::Vec3;
+
+use super::SubstepCtx;
+use crate::topology::SpringKind;
+
+/// A long-range attachment: particle `particle` may be at most `max_distance` from the pinned
+/// particle `anchor`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Tether {
+    pub particle: u32,
+    pub anchor: u32,
+    pub max_distance: f32,
+}
+
+/// Scratch of the XPBD solver.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct XpbdScratch {
+    prev: Vec<Vec3>,
+    lambda: Vec<f32>,
+    force: Vec<Vec3>,
+    /// Tethers, rebuilt when the set of pinned particles changes.
+    tethers: Vec<Tether>,
+    /// The pinned set the tethers were built for.
+    tether_key: Vec<u32>,
+}
+
+impl XpbdScratch {
+    /// Rebuilds the tethers when the pinned set changed: every free particle is tethered to
+    /// its nearest pinned particle (by rest distance), at that distance times (1 + slack).
+    fn update_tethers(&mut self, ctx: &SubstepCtx<'_>) {
+        let rest = ctx.rest;
+        let p = &*ctx.particles;
+        let pinned = p
+            .inv_mass
+            .iter()
+            .enumerate()
+            .filter(|&(_, &w)| w == 0.0)
+            .map(|(i, _)| i as u32);
+        if self.tether_key.iter().copied().eq(pinned.clone()) && !self.tethers.is_empty() {
+            return;
+        }
+        self.tether_key.clear();
+        self.tether_key.extend(pinned);
+        self.tethers.clear();
+        if self.tether_key.is_empty() {
+            return;
+        }
+        let slack = 1.0 + ctx.config.xpbd.tether_slack;
+        for i in 0..p.len() {
+            if p.inv_mass[i] == 0.0 {
+                continue;
+            }
+            let mut best = (f32::INFINITY, 0u32);
+            for &a in &self.tether_key {
+                let d = rest[i].distance(rest[a as usize]);
+                if d < best.0 {
+                    best = (d, a);
+                }
+            }
+            self.tethers.push(Tether {
+                particle: i as u32,
+                anchor: best.1,
+                max_distance: best.0 * slack,
+            });
+        }
+    }
+}
+
+/// One XPBD substep.
+pub(super) fn substep(ctx: &mut SubstepCtx<'_>, sc: &mut XpbdScratch) {
+    let n = ctx.particles.len();
+    let h = ctx.h;
+    let cfg = ctx.config;
+    let settings = cfg.xpbd;
+
+    // 1. predict, with external forces (gravity, damping, air) only.
+    sc.force.resize(n, Vec3::ZERO);
+    let mut ext = *cfg;
+    ext.forces.springs = false;
+    ext.forces.dashpots = false;
+    crate::forces::accumulate(
+        &ext,
+        ctx.topology,
+        &ctx.particles.position,
+        &ctx.particles.velocity,
+        &ctx.particles.mass,
+        ctx.wind,
+        &mut sc.force,
+    );
+    sc.prev.clone_from(&ctx.particles.position);
+    {
+        let p = &mut *ctx.particles;
+        for (((x, v), &w), &f) in p
+            .position
+            .iter_mut()
+            .zip(p.velocity.iter_mut())
+            .zip(&p.inv_mass)
+            .zip(&sc.force)
+        {
+            *v += (h * w) * f;
+            *x += h * *v;
+        }
+    }
+    if settings.tethers {
+        sc.update_tethers(ctx);
+    }
+
+    // 2. constraint sweeps.
+    sc.lambda.clear();
+    sc.lambda.resize(ctx.topology.springs().len(), 0.0);
+    let mut contacts = 0;
+    for _ in 0..settings.iterations {
+        solve_springs(ctx, sc, h);
+        if settings.tethers {
+            solve_tethers(&mut *ctx.particles, &sc.tethers);
+        }
+        contacts = solve_contacts(ctx, &sc.prev, h);
+    }
+    ctx.contacts.contacts = contacts;
+
+    // 3. velocities from positions.
+    let inv_h = 1.0 / h;
+    let p = &mut *ctx.particles;
+    for ((v, &x), (&x0, &w)) in p
+        .velocity
+        .iter_mut()
+        .zip(&p.position)
+        .zip(sc.prev.iter().zip(&p.inv_mass))
+    {
+        if w != 0.0 {
+            *v = (x - x0) * inv_h;
+        }
+    }
+}
+
+fn solve_springs(ctx: &mut SubstepCtx<'_>, sc: &mut XpbdScratch, h: f32) {
+    let cfg = ctx.config;
+    let p = &mut *ctx.particles;
+    let mut offset = 0;
+    for kind in SpringKind::ALL {
+        let springs = ctx.topology.springs_of(kind);
+        let lambda = &mut sc.lambda[offset..offset + springs.len()];
+        offset += springs.len();
+        let params = cfg.material.params(kind);
+        let k = if cfg.forces.springs {
+            params.stiffness
+        } else {
+            0.0
+        };
+        if k == 0.0 {
+            continue;
+        }
+        let c = if cfg.forces.dashpots {
+            params.damping
+        } else {
+            0.0
+        };
+        // α̃ = α/h² with α = 1/k; γ = α̃·β̃/h with β̃ = h²·β, β = c.
+        let alpha = 1.0 / (k * h * h);
+        let gamma = c / (k * h);
+        for (s, lambda) in springs.iter().zip(lambda.iter_mut()) {
+            let (a, b) = (s.a as usize, s.b as usize);
+            let (wa, wb) = (p.inv_mass[a], p.inv_mass[b]);
+            let w = wa + wb;
+            if w == 0.0 {
+                continue;
+            }
+            let l = p.position[a] - p.position[b];
+            let len = l.length();
+            if len <= 0.0 {
+                continue;
+            }
+            let grad = l / len;
+            let constraint = len - s.rest_length;
+            let rate = grad.dot((p.position[a] - sc.prev[a]) - (p.position[b] - sc.prev[b]));
+            let dl = (-constraint - alpha * *lambda - gamma * rate) / ((1.0 + gamma) * w + alpha);
+            *lambda += dl;
+            p.position[a] += (wa * dl) * grad;
+            p.position[b] -= (wb * dl) * grad;
+        }
+    }
+}
+
+fn solve_tethers(p: &mut crate::particles::Particles, tethers: &[Tether]) {
+    for t in tethers {
+        let (i, a) = (t.particle as usize, t.anchor as usize);
+        let d = p.position[i] - p.position[a];
+        let len = d.length();
+        if len > t.max_distance && len > 0.0 {
+            p.position[i] -= (len - t.max_distance) / len * d;
+        }
+    }
+}
+
+/// Projects particles out of colliders; position-level Coulomb friction on the substep's
+/// tangential displacement relative to the collider. Returns the number of contacts.
+fn solve_contacts(ctx: &mut SubstepCtx<'_>, prev: &[Vec3], h: f32) -> u32 {
+    let mut contacts = 0;
+    let p = &mut *ctx.particles;
+    for col in ctx.colliders {
+        let (mu_s, mu_k) = (
+            col.friction.static_coefficient,
+            col.friction.kinetic_coefficient,
+        );
+        for ((x, &x0), &w) in p.position.iter_mut().zip(prev).zip(&p.inv_mass) {
+            if w == 0.0 {
+                continue;
+            }
+            let (dist, nrm) = col.shape.distance(*x);
+            let phi = dist - col.thickness;
+            if phi >= 0.0 {
+                continue;
+            }
+            contacts += 1;
+            let push = -phi;
+            *x += push * nrm;
+            let rel = (*x - x0) - col.velocity * h;
+            let tangential = rel - rel.dot(nrm) * nrm;
+            let t_len = tangential.length();
+            if t_len <= mu_s * push {
+                *x -= tangential;
+            } else if t_len > 0.0 {
+                *x -= tangential * (mu_k * push / t_len).min(1.0);
+            }
+        }
+    }
+    contacts
+}
