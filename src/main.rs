@@ -1,104 +1,238 @@
-//! `cloth`: runs a built-in scene headless and prints what happens.
+//! `cloth`: run, render and view the cloth simulator's built-in scenes.
 //!
-//! (The viewer and scene files come later; for now this is the quick way to see the
-//! simulator work.)
+//! - `cloth sim SCENE`: headless run printing a diagnostics table;
+//! - `cloth render SCENE --png FILE`: steps the scene and renders its last frame offscreen;
+//! - `cloth view [SCENE]`: the interactive viewer (plain `cloth` is `cloth view drape`).
 
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use cloth_core::{ClothError, Integrator, Simulation, SpringClass, presets};
+use clap::{Args, Parser, Subcommand};
+use cloth_core::{ClothError, Integrator, Simulation, SpringClass};
+use cloth_view::SceneKind;
 
-const USAGE: &str = "usage: cloth [sim] [drape|hanging|peer-ball] [--frames N] [--resolution N] \
-[--integrator forward-euler|symplectic-euler|verlet]";
+const AFTER_HELP: &str = "\
+Scenes:
+  drape       a 1.2 m cloth dropped onto a ball on the ground (the default)
+  hanging     a 1 m curtain hanging from its two top corners
+  peer-ball   the peer benchmark: a stiff cloth on a frictionless ball
+  flag        a flag pinned along its left edge in gusty wind
 
-struct Args {
-    scene: String,
-    frames: u64,
+Examples:
+  cloth                                   open the viewer on the drape
+  cloth sim drape --frames 300            run headless, print energies and strains
+  cloth render drape --frames 90 --png drape.png --size 800x600
+  cloth view flag --resolution 32
+
+Viewer controls: left-drag on the cloth grabs it, elsewhere orbits; right/middle-drag pans;
+wheel zooms; Ctrl/Shift-click pins or unpins; Space pause, N single step, R reset,
+C orbit/fly camera (fly: WASD, Q/E down/up, Shift faster, right-drag looks), W wireframe,
+Home reset view, Esc quit.
+
+Without a GPU, rendering needs Mesa's software renderer and, for the window, a display (or
+`xvfb-run -a cloth view`). Exit status: 0 ok, 1 failure (no adapter, no display, I/O),
+2 bad arguments, 3 the simulation went unstable.";
+
+/// Real-time cloth simulation: run, render or view a built-in scene.
+#[derive(Debug, Parser)]
+#[command(name = "cloth", version, about, after_help = AFTER_HELP)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run a scene headless and print a table of its diagnostics.
+    Sim {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Frames (steps of the scene's dt) to run.
+        #[arg(long, value_name = "N", default_value = "120", value_parser = parse_frames)]
+        frames: u64,
+    },
+    /// Step a scene, then render its last frame offscreen (no window) into a PNG.
+    Render {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Frames to step before rendering.
+        #[arg(long, value_name = "N", default_value = "120", value_parser = parse_frames)]
+        frames: u64,
+        /// The PNG file to write.
+        #[arg(long, value_name = "FILE")]
+        png: PathBuf,
+        /// Image size.
+        #[arg(long, value_name = "WxH", default_value = "800x600", value_parser = parse_size)]
+        size: [u32; 2],
+    },
+    /// Open the interactive viewer.
+    View {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Quit by itself after this many frames (for scripted runs and tests).
+        #[arg(long, value_name = "N", value_parser = parse_frames)]
+        frames: Option<u64>,
+        /// Initial window size.
+        #[arg(long, value_name = "WxH", default_value = "1280x800", value_parser = parse_size)]
+        size: [u32; 2],
+        /// Save the last frame, panel included, to this PNG (needs --frames).
+        #[arg(long, value_name = "FILE", requires = "frames")]
+        screenshot: Option<PathBuf>,
+    },
+}
+
+#[derive(Debug, Args)]
+struct SceneArgs {
+    /// The scene: drape, hanging, peer-ball or flag.
+    #[arg(value_name = "SCENE", default_value = "drape", value_parser = parse_scene)]
+    scene: SceneKind,
+    /// Particles along each side of the cloth.
+    #[arg(long, value_name = "N", default_value = "48", value_parser = parse_resolution)]
     resolution: usize,
+    /// The time integrator: forward-euler, symplectic-euler or verlet.
+    #[arg(long, value_name = "NAME", default_value = "symplectic-euler", value_parser = parse_integrator)]
     integrator: Integrator,
 }
 
-fn parse_args() -> Result<Args, String> {
-    let mut args = Args {
-        scene: "drape".into(),
-        frames: 120,
-        resolution: 48,
-        integrator: Integrator::SymplecticEuler,
-    };
-    let mut it = std::env::args().skip(1).peekable();
-    if it.peek().map(String::as_str) == Some("sim") {
-        it.next();
-    }
-    while let Some(arg) = it.next() {
-        let mut value = |name: &str| it.next().ok_or_else(|| format!("`{name}` needs a value"));
-        match arg.as_str() {
-            "-h" | "--help" => return Err(String::new()),
-            "--frames" => {
-                let v = value("--frames")?;
-                args.frames = v.parse().ok().filter(|&f| f >= 1).ok_or_else(|| {
-                    format!("invalid `--frames` = {v:?}: allowed an integer >= 1")
-                })?;
-            }
-            "--resolution" => {
-                let v = value("--resolution")?;
-                args.resolution = v
-                    .parse()
-                    .ok()
-                    .filter(|r| (2..=4096).contains(r))
-                    .ok_or_else(|| {
-                        format!("invalid `--resolution` = {v:?}: allowed an integer in 2 ..= 4096")
-                    })?;
-            }
-            "--integrator" => {
-                let v = value("--integrator")?;
-                args.integrator = Integrator::ALL
-                    .into_iter()
-                    .find(|i| i.name() == v)
-                    .ok_or_else(|| {
-                        format!(
-                            "invalid `--integrator` = {v:?}: allowed forward-euler, symplectic-euler, verlet"
-                        )
-                    })?;
-            }
-            s if !s.starts_with('-') => args.scene = s.to_string(),
-            s => return Err(format!("unknown option `{s}`")),
-        }
-    }
-    Ok(args)
+fn parse_scene(s: &str) -> Result<SceneKind, String> {
+    SceneKind::from_name(s).ok_or_else(|| format!("unknown scene: allowed {}", SceneKind::names()))
 }
 
-fn build(args: &Args) -> Result<Simulation, String> {
-    let sim = match args.scene.as_str() {
-        "drape" => presets::drape(args.resolution, args.integrator),
-        "hanging" => presets::hanging(args.resolution, args.integrator),
-        "peer-ball" => presets::peer_ball(args.resolution),
-        other => {
-            return Err(format!(
-                "unknown scene `{other}`: allowed drape, hanging, peer-ball"
-            ));
-        }
-    };
-    sim.map_err(|e| e.to_string())
+fn parse_frames(s: &str) -> Result<u64, String> {
+    s.parse()
+        .ok()
+        .filter(|&f| f >= 1)
+        .ok_or_else(|| "allowed an integer >= 1".into())
+}
+
+fn parse_resolution(s: &str) -> Result<usize, String> {
+    s.parse()
+        .ok()
+        .filter(|r| (2..=4096).contains(r))
+        .ok_or_else(|| "allowed an integer in 2 ..= 4096".into())
+}
+
+fn parse_integrator(s: &str) -> Result<Integrator, String> {
+    Integrator::ALL
+        .into_iter()
+        .find(|i| i.name() == s)
+        .ok_or_else(|| {
+            let names: Vec<_> = Integrator::ALL.iter().map(|i| i.name()).collect();
+            format!("allowed {}", names.join(", "))
+        })
+}
+
+fn parse_size(s: &str) -> Result<[u32; 2], String> {
+    let err = || "allowed WIDTHxHEIGHT with sides in 1 ..= 8192, e.g. 800x600".to_string();
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(err)?;
+    let side = |v: &str| v.parse::<u32>().ok().filter(|v| (1..=8192).contains(v));
+    Ok([side(w).ok_or_else(err)?, side(h).ok_or_else(err)?])
 }
 
 fn main() -> ExitCode {
-    let args = match parse_args() {
-        Ok(a) => a,
-        Err(msg) => {
-            if msg.is_empty() {
-                println!("{USAGE}");
-                return ExitCode::SUCCESS;
+    let cli = Cli::parse();
+    let command = cli.command.unwrap_or(Command::View {
+        scene: SceneArgs {
+            scene: SceneKind::Drape,
+            resolution: 48,
+            integrator: Integrator::SymplecticEuler,
+        },
+        frames: None,
+        size: [1280, 800],
+        screenshot: None,
+    });
+    match command {
+        Command::Sim { scene, frames } => sim(&scene, frames),
+        Command::Render {
+            scene,
+            frames,
+            png,
+            size,
+        } => render(&scene, frames, &png, size),
+        Command::View {
+            scene,
+            frames,
+            size,
+            screenshot,
+        } => {
+            let options = cloth_view::app::ViewOptions {
+                scene: scene.scene,
+                resolution: scene.resolution,
+                integrator: scene.integrator,
+                frames,
+                size,
+                screenshot,
+            };
+            match cloth_view::app::run(options) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("error: {e:#}");
+                    ExitCode::FAILURE
+                }
             }
-            eprintln!("error: {msg}\n{USAGE}");
-            return ExitCode::from(2);
+        }
+    }
+}
+
+fn build(args: &SceneArgs) -> Result<Simulation, ExitCode> {
+    args.scene
+        .build(args.resolution, args.integrator)
+        .map_err(|e| {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        })
+}
+
+fn render(args: &SceneArgs, frames: u64, png: &std::path::Path, size: [u32; 2]) -> ExitCode {
+    let mut sim = match build(args) {
+        Ok(s) => s,
+        Err(code) => return code,
+    };
+    for _ in 0..frames {
+        if let Err(e) = sim.step() {
+            eprintln!("error: {e}");
+            return ExitCode::from(3);
+        }
+    }
+    let gpu = match cloth_view::Gpu::headless() {
+        Ok(g) => g,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
         }
     };
-    let mut sim = match build(&args) {
-        Ok(s) => s,
-        Err(msg) => {
-            eprintln!("error: {msg}");
-            return ExitCode::from(2);
+    let adapter = gpu.adapter_name();
+    let mut offscreen = cloth_view::Offscreen::new(gpu, size);
+    let camera = cloth_view::default_camera(args.scene);
+    let options = cloth_view::default_options(args.scene);
+    let result = offscreen
+        .render(&sim, &camera, &options)
+        .and_then(|img| img.save(png).map_err(anyhow::Error::from));
+    match result {
+        Ok(()) => {
+            println!(
+                "wrote {} ({}x{}, {} after {frames} frames, t = {:.3} s; {}x MSAA on {adapter})",
+                png.display(),
+                size[0],
+                size[1],
+                args.scene,
+                sim.time(),
+                offscreen.samples()
+            );
+            ExitCode::SUCCESS
         }
+        Err(e) => {
+            eprintln!("error: cannot write {}: {e:#}", png.display());
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn sim(args: &SceneArgs, frames: u64) -> ExitCode {
+    let mut sim = match build(args) {
+        Ok(s) => s,
+        Err(code) => return code,
     };
     let (rows, cols) = sim.grid_size();
     let cfg = *sim.config();
@@ -127,13 +261,13 @@ fn main() -> ExitCode {
     );
     let start = Instant::now();
     let mut stepping = 0.0f64;
-    for frame in 1..=args.frames {
+    for frame in 1..=frames {
         let t0 = Instant::now();
         let result = sim.step();
         stepping += t0.elapsed().as_secs_f64();
         match result {
             Ok(s) => {
-                if frame % 10 == 0 || frame == args.frames {
+                if frame % 10 == 0 || frame == frames {
                     println!(
                         "{:>6} {:>8.3} {:>12.5e} {:>12.5e} {:>10.4} {:>10.4} {:>10.4} {:>9.2e} {:>8}",
                         frame,
@@ -159,13 +293,13 @@ fn main() -> ExitCode {
         }
     }
     let n = sim.particles().len() as f64;
-    let substeps = f64::from(cfg.substeps) * args.frames as f64;
+    let substeps = f64::from(cfg.substeps) * frames as f64;
     println!(
         "done: {} frames in {:.3} s wall ({:.3} s stepping), {:.2} ms/frame, {:.3e} particle-substeps/s",
-        args.frames,
+        frames,
         start.elapsed().as_secs_f64(),
         stepping,
-        1e3 * stepping / args.frames as f64,
+        1e3 * stepping / frames as f64,
         n * substeps / stepping
     );
     ExitCode::SUCCESS

@@ -30,6 +30,20 @@ pub enum ClothError {
         /// The number of particles.
         len: usize,
     },
+    /// A scene file (or a `--set` override) is not valid.
+    #[error("{file}{}: `{key}`: {message}", if *.line > 0 { format!(":{}:{}", .line, .column) } else { String::new() })]
+    Scene {
+        /// The file (or `--set key=value` override) the problem is in.
+        file: String,
+        /// 1-based line of the problem, 0 when unknown.
+        line: usize,
+        /// 1-based column of the problem, 0 when unknown.
+        column: usize,
+        /// Dotted key path, e.g. `cloth.resolution`.
+        key: String,
+        /// What is wrong and what is allowed.
+        message: String,
+    },
     /// A step would have produced a non-finite or runaway state. The simulation kept the
     /// state it had before the step.
     #[error(

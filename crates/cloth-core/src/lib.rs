@@ -49,6 +49,8 @@ pub mod forces;
 pub mod grid;
 pub mod particles;
 pub mod presets;
+#[cfg(feature = "scene")]
+pub mod scene;
 mod sim;
 mod solver;
 pub mod topology;

@@ -7,7 +7,7 @@ use crate::collide::{Collider, Friction};
 use crate::config::{Air, Integrator, Material, SimConfig, SpringParams};
 use crate::diagnostics::explicit_stability_limit;
 use crate::error::Result;
-use crate::grid::{Edge, GridBuilder, Mass, Orientation};
+use crate::grid::{GridBuilder, Mass};
 use crate::sim::Simulation;
 
 /// Substeps per step that keep symplectic Euler and Verlet inside the stability estimate of
@@ -30,75 +30,32 @@ pub fn tune_for_integrator(config: &mut SimConfig, min_mass: f32) {
     config.xpbd.tethers = true;
 }
 
-/// The seed paper's scene: an `n × n` cloth, 1.2 m square, 0.2 kg/m², dropped flat from
-/// 0.55 m onto a ball of radius 0.3 m resting on the ground (y = −0.3), with friction
-/// μ_s = 0.6, μ_k = 0.5 on both. Substeps from [`tune_for_integrator`].
-pub fn drape(n: usize, integrator: Integrator) -> Result<Simulation> {
-    let cloth = GridBuilder::new(n, n)
-        .size(1.2, 1.2)
-        .origin(Vec3::new(0.0, 0.55, 0.0))
-        .mass(Mass::ArealDensity(0.2))
-        .build()?;
-    let mut config = SimConfig {
-        integrator,
-        damping: 2e-4,
-        material: Material::isotropic(
-            SpringParams::new(400.0, 0.02),
-            SpringParams::new(80.0, 0.01),
-            SpringParams::new(10.0, 0.005),
-        ),
-        ..SimConfig::default()
-    };
-    let min_mass = cloth
-        .particles
-        .mass
-        .iter()
-        .copied()
-        .fold(f32::INFINITY, f32::min);
-    tune_for_integrator(&mut config, min_mass);
-    let mut sim = Simulation::new(cloth, config)?;
-    let friction = Friction::new(0.6, 0.5);
-    sim.add_collider(
-        Collider::sphere(Vec3::ZERO, 0.3)
-            .with_thickness(0.008)
-            .with_friction(friction),
-    )?;
-    sim.add_collider(
-        Collider::plane(Vec3::new(0.0, -0.3, 0.0), Vec3::Y)
-            .with_thickness(0.008)
-            .with_friction(friction),
-    )?;
-    Ok(sim)
+/// A built-in scene with its resolution set to `n × n` and its integrator to `integrator`
+/// (substeps "auto", see [`tune_for_integrator`]).
+#[cfg(feature = "scene")]
+fn builtin_at(name: &str, n: usize, integrator: Integrator) -> Result<Simulation> {
+    let mut scene = crate::scene::builtin(name).expect("built-in scene");
+    let side = u32::try_from(n).unwrap_or(u32::MAX);
+    scene.cloth.resolution = [side, side];
+    scene.solver.kind = integrator.name().into();
+    scene.solver.substeps = crate::scene::SubstepsDesc::default();
+    scene.build()
 }
 
-/// A curtain: an `n × n` vertical cloth, 1 m square, 0.2 kg/m², pinned along its top edge at
-/// y = 1.5 m, in still air.
+/// The seed paper's scene (`scenes/drape.toml`) at `n × n` particles: a 1.2 m cloth,
+/// 0.2 kg/m², dropped flat from 0.55 m onto a ball of radius 0.3 m resting on the ground
+/// (y = −0.3), with friction μ_s = 0.6, μ_k = 0.5 on both. Substeps from
+/// [`tune_for_integrator`].
+#[cfg(feature = "scene")]
+pub fn drape(n: usize, integrator: Integrator) -> Result<Simulation> {
+    builtin_at("drape", n, integrator)
+}
+
+/// A curtain (`scenes/hanging.toml`) at `n × n` particles: 1 m square, 0.2 kg/m², pinned along
+/// its top edge at y = 1.5 m, above the ground. Substeps from [`tune_for_integrator`].
+#[cfg(feature = "scene")]
 pub fn hanging(n: usize, integrator: Integrator) -> Result<Simulation> {
-    let cloth = GridBuilder::new(n, n)
-        .size(1.0, 1.0)
-        .orientation(Orientation::Vertical)
-        .origin(Vec3::new(0.0, 1.0, 0.0))
-        .mass(Mass::ArealDensity(0.2))
-        .pin_edge(Edge::Top)
-        .build()?;
-    let mut config = SimConfig {
-        integrator,
-        damping: 1e-3,
-        material: Material::isotropic(
-            SpringParams::new(400.0, 0.02),
-            SpringParams::new(80.0, 0.01),
-            SpringParams::new(10.0, 0.005),
-        ),
-        ..SimConfig::default()
-    };
-    let min_mass = cloth
-        .particles
-        .mass
-        .iter()
-        .copied()
-        .fold(f32::INFINITY, f32::min);
-    tune_for_integrator(&mut config, min_mass);
-    Simulation::new(cloth, config)
+    builtin_at("hanging", n, integrator)
 }
 
 /// The scene of the peer benchmark (Taichi's `mass_spring_3d_ggui` example): `n × n`

@@ -1,0 +1,1353 @@
+//! Scene files: one TOML document describing a whole simulation (cloth, material, forces,
+//! colliders, solver, run length, camera hint). `docs/scenes.md` documents every key.
+//!
+//! ```
+//! use cloth_core::scene::Scene;
+//! let scene = Scene::from_toml(r#"
+//!     [cloth]
+//!     resolution = [16, 16]
+//!     size = [1.0, 1.0]
+//!     origin = [0.0, 1.0, 0.0]
+//!
+//!     [[colliders]]
+//!     type = "sphere"
+//!     center = [0.0, 0.0, 0.0]
+//!     radius = 0.4
+//! "#, "inline.toml")?;
+//! let mut sim = scene.build()?;
+//! sim.step()?;
+//! # Ok::<(), cloth_core::ClothError>(())
+//! ```
+//!
+//! Errors name the file, the line and column, the key and what is allowed; unknown keys get
+//! the closest known key as a suggestion.
+
+use glam::{EulerRot, Quat, Vec3};
+use serde::{Deserialize, Serialize};
+
+use crate::collide::{Collider, Friction, Shape};
+use crate::config::{
+    Air, ForceSwitches, Gust, ImplicitSettings, Integrator, Material, SimConfig, SpringParams,
+    StabilityLimits, XpbdSettings,
+};
+use crate::error::{ClothError, Result};
+use crate::grid::{Corner, Edge, GridBuilder, MAX_GRID_SIDE, Mass, Orientation};
+use crate::presets::tune_for_integrator;
+use crate::sim::Simulation;
+
+/// A whole scene, as read from a TOML file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// Short name. Default empty.
+    #[serde(default)]
+    pub name: String,
+    /// One-line description. Default empty.
+    #[serde(default)]
+    pub description: String,
+    /// Default run length for `cloth sim` and the viewer, s. Default 4 s.
+    #[serde(default = "default_duration")]
+    pub duration: f32,
+    /// The cloth grid.
+    pub cloth: ClothDesc,
+    /// Spring parameters per kind.
+    #[serde(default)]
+    pub material: MaterialDesc,
+    /// Gravity, damping, air.
+    #[serde(default)]
+    pub forces: ForcesDesc,
+    /// Colliders (`[[colliders]]`).
+    #[serde(default)]
+    pub colliders: Vec<ColliderDesc>,
+    /// Integrator and step.
+    #[serde(default)]
+    pub solver: SolverDesc,
+    /// Where the viewer's camera starts.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<CameraDesc>,
+}
+
+fn default_duration() -> f32 {
+    4.0
+}
+
+/// `[cloth]`: the grid.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClothDesc {
+    /// `[rows, cols]`, each 2 ..= 8192.
+    pub resolution: [u32; 2],
+    /// `[width, height]`, m. Default `[1, 1]`. Ignored when `spacing` is given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub size: Option<[f32; 2]>,
+    /// `[along_cols, along_rows]` particle spacing, m; instead of `size`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spacing: Option<[f32; 2]>,
+    /// `"horizontal"` (default) or `"vertical"`.
+    #[serde(default)]
+    pub orientation: OrientationDesc,
+    /// Centre of the grid, m. Default `[0, 0, 0]`.
+    #[serde(default)]
+    pub origin: [f32; 3],
+    /// Rotation about the origin as XYZ Euler angles, degrees. Default `[0, 0, 0]`.
+    #[serde(default)]
+    pub rotation: [f32; 3],
+    /// Initial velocity, m/s. Default `[0, 0, 0]`.
+    #[serde(default)]
+    pub velocity: [f32; 3],
+    /// Areal density, kg/m². Default 0.2 unless `mass_per_particle` is given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub density: Option<f32>,
+    /// Mass of every particle, kg; instead of `density`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mass_per_particle: Option<f32>,
+    /// Pinned particles.
+    #[serde(default)]
+    pub pins: PinsDesc,
+}
+
+/// Plane of the cloth before rotation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum OrientationDesc {
+    /// XZ plane, normal +Y.
+    #[default]
+    Horizontal,
+    /// XY plane, row 0 on top, normal +Z.
+    Vertical,
+}
+
+/// `[cloth.pins]`.
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PinsDesc {
+    /// Any of `"top-left"`, `"top-right"`, `"bottom-left"`, `"bottom-right"`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub corners: Vec<CornerDesc>,
+    /// Any of `"top"`, `"bottom"`, `"left"`, `"right"`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub edges: Vec<EdgeDesc>,
+    /// Particle indices `row * cols + col`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub indices: Vec<u32>,
+}
+
+/// A grid corner.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+#[allow(missing_docs)]
+pub enum CornerDesc {
+    TopLeft,
+    TopRight,
+    BottomLeft,
+    BottomRight,
+}
+
+/// A grid edge.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+#[allow(missing_docs)]
+pub enum EdgeDesc {
+    Top,
+    Bottom,
+    Left,
+    Right,
+}
+
+/// `{ stiffness, damping }` of one spring kind.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpringDesc {
+    /// N/m, `>= 0`.
+    pub stiffness: f32,
+    /// N·s/m, `>= 0`. Default 0.
+    #[serde(default)]
+    pub damping: f32,
+}
+
+impl From<SpringParams> for SpringDesc {
+    fn from(p: SpringParams) -> Self {
+        Self {
+            stiffness: p.stiffness,
+            damping: p.damping,
+        }
+    }
+}
+
+/// `[material]`: one table per spring kind; defaults are [`Material::default`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+#[allow(missing_docs)]
+pub struct MaterialDesc {
+    #[serde(default = "d_warp")]
+    pub warp: SpringDesc,
+    #[serde(default = "d_weft")]
+    pub weft: SpringDesc,
+    #[serde(default = "d_shear")]
+    pub shear: SpringDesc,
+    #[serde(default = "d_bend")]
+    pub bend: SpringDesc,
+}
+
+fn d_warp() -> SpringDesc {
+    Material::default().warp.into()
+}
+fn d_weft() -> SpringDesc {
+    Material::default().weft.into()
+}
+fn d_shear() -> SpringDesc {
+    Material::default().shear.into()
+}
+fn d_bend() -> SpringDesc {
+    Material::default().bend.into()
+}
+
+impl Default for MaterialDesc {
+    fn default() -> Self {
+        Self {
+            warp: d_warp(),
+            weft: d_weft(),
+            shear: d_shear(),
+            bend: d_bend(),
+        }
+    }
+}
+
+/// `[forces]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ForcesDesc {
+    /// m/s². Default `[0, -9.81, 0]`.
+    #[serde(default = "d_gravity")]
+    pub gravity: [f32; 3],
+    /// Global damping d in F = −d·v, N·s/m. Default 0.002.
+    #[serde(default = "d_damping")]
+    pub damping: f32,
+    /// Air drag, lift and wind.
+    #[serde(default)]
+    pub air: AirDesc,
+    /// Switches per force term (all on by default).
+    #[serde(default)]
+    pub enabled: EnabledDesc,
+}
+
+fn d_gravity() -> [f32; 3] {
+    SimConfig::default().gravity.to_array()
+}
+fn d_damping() -> f32 {
+    SimConfig::default().damping
+}
+
+impl Default for ForcesDesc {
+    fn default() -> Self {
+        Self {
+            gravity: d_gravity(),
+            damping: d_damping(),
+            air: AirDesc::default(),
+            enabled: EnabledDesc::default(),
+        }
+    }
+}
+
+/// `[forces.air]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AirDesc {
+    /// kg/m³. Default 1.2.
+    #[serde(default = "d_air_density")]
+    pub density: f32,
+    /// Drag coefficient. Default 1.0.
+    #[serde(default = "d_drag")]
+    pub drag: f32,
+    /// Lift coefficient. Default 0.2.
+    #[serde(default = "d_lift")]
+    pub lift: f32,
+    /// Steady wind, m/s. Default `[0, 0, 0]`.
+    #[serde(default)]
+    pub wind: [f32; 3],
+    /// Gusts `{ amplitude, frequency }`; none by default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gust: Option<GustDesc>,
+}
+
+fn d_air_density() -> f32 {
+    Air::default().density
+}
+fn d_drag() -> f32 {
+    Air::default().drag_coefficient
+}
+fn d_lift() -> f32 {
+    Air::default().lift_coefficient
+}
+
+impl Default for AirDesc {
+    fn default() -> Self {
+        Self {
+            density: d_air_density(),
+            drag: d_drag(),
+            lift: d_lift(),
+            wind: [0.0; 3],
+            gust: None,
+        }
+    }
+}
+
+/// `[forces.air.gust]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GustDesc {
+    /// 0 ..= 1. Default 0.5.
+    #[serde(default = "d_gust_amp")]
+    pub amplitude: f32,
+    /// Hz, `> 0`. Default 0.5.
+    #[serde(default = "d_gust_freq")]
+    pub frequency: f32,
+}
+
+fn d_gust_amp() -> f32 {
+    Gust::default().amplitude
+}
+fn d_gust_freq() -> f32 {
+    Gust::default().frequency
+}
+
+/// `[forces.enabled]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+#[allow(missing_docs)]
+pub struct EnabledDesc {
+    #[serde(default = "yes")]
+    pub gravity: bool,
+    #[serde(default = "yes")]
+    pub springs: bool,
+    #[serde(default = "yes")]
+    pub dashpots: bool,
+    #[serde(default = "yes")]
+    pub damping: bool,
+    #[serde(default = "yes")]
+    pub air: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+impl Default for EnabledDesc {
+    fn default() -> Self {
+        Self {
+            gravity: true,
+            springs: true,
+            dashpots: true,
+            damping: true,
+            air: true,
+        }
+    }
+}
+
+/// `[[colliders]]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ColliderDesc {
+    /// `"sphere"` or `"plane"`.
+    #[serde(rename = "type")]
+    pub kind: ColliderKind,
+    /// Sphere centre, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub center: Option<[f32; 3]>,
+    /// Sphere radius, m, `> 0`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f32>,
+    /// A point on the plane, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub point: Option<[f32; 3]>,
+    /// Plane outward normal (normalised).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub normal: Option<[f32; 3]>,
+    /// Prescribed velocity, m/s. Default `[0, 0, 0]`.
+    #[serde(default)]
+    pub velocity: [f32; 3],
+    /// Contact thickness, m, `>= 0`. Default 0.01.
+    #[serde(default = "d_thickness")]
+    pub thickness: f32,
+    /// Coulomb friction. Default `{ static = 0.5, kinetic = 0.4 }`.
+    #[serde(default)]
+    pub friction: FrictionDesc,
+}
+
+fn d_thickness() -> f32 {
+    0.01
+}
+
+/// A collider's shape kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+#[allow(missing_docs)]
+pub enum ColliderKind {
+    Sphere,
+    Plane,
+}
+
+/// `friction = { static, kinetic }`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrictionDesc {
+    /// μ_s, `>= 0`. Default 0.5.
+    #[serde(rename = "static", default = "d_mus")]
+    pub static_coefficient: f32,
+    /// μ_k, `>= 0`. Default 0.4.
+    #[serde(rename = "kinetic", default = "d_muk")]
+    pub kinetic_coefficient: f32,
+}
+
+fn d_mus() -> f32 {
+    Friction::default().static_coefficient
+}
+fn d_muk() -> f32 {
+    Friction::default().kinetic_coefficient
+}
+
+impl Default for FrictionDesc {
+    fn default() -> Self {
+        Self {
+            static_coefficient: d_mus(),
+            kinetic_coefficient: d_muk(),
+        }
+    }
+}
+
+/// `substeps = 12` or `substeps = "auto"`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum SubstepsDesc {
+    /// A fixed count, 1 ..= 100000.
+    Count(u32),
+    /// `"auto"`: chosen per integrator (see [`tune_for_integrator`]).
+    Word(String),
+}
+
+impl Default for SubstepsDesc {
+    fn default() -> Self {
+        Self::Word("auto".into())
+    }
+}
+
+/// `[solver]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverDesc {
+    /// `"forward-euler"`, `"symplectic-euler"` (default), `"verlet"`, `"implicit-euler"` or
+    /// `"xpbd"`.
+    #[serde(default = "d_kind")]
+    pub kind: String,
+    /// Step per frame, s, `> 0`. Default 1/60.
+    #[serde(default = "d_dt")]
+    pub dt: f32,
+    /// Substeps per step, or `"auto"` (default).
+    #[serde(default)]
+    pub substeps: SubstepsDesc,
+    /// Provot strain limit for the force-based integrators, `> 0`; none by default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub strain_limit: Option<f32>,
+    /// `{ tolerance, max_iterations }`.
+    #[serde(default)]
+    pub implicit: ImplicitDesc,
+    /// `{ iterations, tethers, tether_slack }`.
+    #[serde(default)]
+    pub xpbd: XpbdDesc,
+    /// `{ max_stretch_ratio, max_speed }`.
+    #[serde(default)]
+    pub limits: LimitsDesc,
+}
+
+fn d_kind() -> String {
+    Integrator::default().name().into()
+}
+fn d_dt() -> f32 {
+    SimConfig::default().dt
+}
+
+impl Default for SolverDesc {
+    fn default() -> Self {
+        Self {
+            kind: d_kind(),
+            dt: d_dt(),
+            substeps: SubstepsDesc::default(),
+            strain_limit: None,
+            implicit: ImplicitDesc::default(),
+            xpbd: XpbdDesc::default(),
+            limits: LimitsDesc::default(),
+        }
+    }
+}
+
+/// `[solver.implicit]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+#[allow(missing_docs)]
+pub struct ImplicitDesc {
+    #[serde(default = "d_tol")]
+    pub tolerance: f32,
+    #[serde(default = "d_maxit")]
+    pub max_iterations: u32,
+}
+fn d_tol() -> f32 {
+    ImplicitSettings::default().tolerance
+}
+fn d_maxit() -> u32 {
+    ImplicitSettings::default().max_iterations
+}
+impl Default for ImplicitDesc {
+    fn default() -> Self {
+        Self {
+            tolerance: d_tol(),
+            max_iterations: d_maxit(),
+        }
+    }
+}
+
+/// `[solver.xpbd]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+#[allow(missing_docs)]
+pub struct XpbdDesc {
+    #[serde(default = "d_iter")]
+    pub iterations: u32,
+    #[serde(default = "yes")]
+    pub tethers: bool,
+    #[serde(default = "d_slack")]
+    pub tether_slack: f32,
+}
+fn d_iter() -> u32 {
+    XpbdSettings::default().iterations
+}
+fn d_slack() -> f32 {
+    XpbdSettings::default().tether_slack
+}
+impl Default for XpbdDesc {
+    fn default() -> Self {
+        Self {
+            iterations: d_iter(),
+            tethers: true,
+            tether_slack: d_slack(),
+        }
+    }
+}
+
+/// `[solver.limits]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+#[allow(missing_docs)]
+pub struct LimitsDesc {
+    #[serde(default = "d_stretch")]
+    pub max_stretch_ratio: f32,
+    #[serde(default = "d_speed")]
+    pub max_speed: f32,
+}
+fn d_stretch() -> f32 {
+    StabilityLimits::default().max_stretch_ratio
+}
+fn d_speed() -> f32 {
+    StabilityLimits::default().max_speed
+}
+impl Default for LimitsDesc {
+    fn default() -> Self {
+        Self {
+            max_stretch_ratio: d_stretch(),
+            max_speed: d_speed(),
+        }
+    }
+}
+
+/// `[camera]`: where the viewer starts.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraDesc {
+    /// Eye position, m.
+    pub eye: [f32; 3],
+    /// Look-at point, m.
+    pub target: [f32; 3],
+    /// Vertical field of view, degrees, in (0, 180). Default 45.
+    #[serde(default = "d_fov")]
+    pub fov_degrees: f32,
+}
+fn d_fov() -> f32 {
+    45.0
+}
+
+/// A problem found in a scene: key path and message (before the file position is attached).
+struct Invalid {
+    key: String,
+    message: String,
+}
+
+fn invalid(key: impl Into<String>, value: impl std::fmt::Debug, allowed: &str) -> Invalid {
+    Invalid {
+        key: key.into(),
+        message: format!("{value:?} is not allowed: allowed {allowed}"),
+    }
+}
+
+fn finite3(key: &str, v: [f32; 3]) -> std::result::Result<(), Invalid> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(invalid(key, v, "three finite numbers"))
+    }
+}
+
+fn positive(key: &str, v: f32) -> std::result::Result<(), Invalid> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(key, v, "a finite number > 0"))
+    }
+}
+
+fn non_negative(key: &str, v: f32) -> std::result::Result<(), Invalid> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(key, v, "a finite number >= 0"))
+    }
+}
+
+/// Bytes a simulation of `particles` particles and `springs` springs needs, roughly: state,
+/// scratch and backups per particle, and the springs with the implicit solver's blocks.
+#[must_use]
+pub fn memory_estimate(particles: u64, springs: u64) -> u64 {
+    particles * 12 * 24 + springs * 48
+}
+
+impl Scene {
+    /// Parses and validates a scene. `file` names the source in error messages.
+    ///
+    /// # Errors
+    /// [`ClothError::Scene`] with the file, line, column, key and what is allowed.
+    pub fn from_toml(source: &str, file: &str) -> Result<Scene> {
+        if source.contains('\0') {
+            return Err(scene_error(
+                file,
+                None,
+                "",
+                "the file is binary, not a TOML scene".into(),
+            ));
+        }
+        if source.trim().is_empty() {
+            return Err(scene_error(
+                file,
+                None,
+                "",
+                "the file is empty: a scene needs at least a [cloth] table with `resolution`"
+                    .into(),
+            ));
+        }
+        let scene: Scene = toml::from_str(source).map_err(|e| de_error(source, file, &e))?;
+        if let Err(bad) = scene.check() {
+            let pos = span_of(source, &bad.key).map(|s| line_col(source, s.start));
+            return Err(scene_error(file, pos, &bad.key, bad.message));
+        }
+        Ok(scene)
+    }
+
+    /// Applies `key.path=value` overrides (the value in TOML syntax, e.g. `[64, 64]`, `0.5`,
+    /// `"xpbd"`) to a scene source and parses the result. Each override is validated exactly as
+    /// the file is; errors name the override.
+    pub fn from_toml_with_overrides(
+        source: &str,
+        file: &str,
+        overrides: &[String],
+    ) -> Result<Scene> {
+        if overrides.is_empty() {
+            return Self::from_toml(source, file);
+        }
+        // Check the file alone first, so that its own errors point into it.
+        Self::from_toml(source, file)?;
+        let mut doc: toml::Table =
+            toml::from_str(source).map_err(|e| de_error(source, file, &e))?;
+        for item in overrides {
+            let where_ = format!("--set {item}");
+            let Some((path, value)) = item.split_once('=') else {
+                return Err(scene_error(
+                    &where_,
+                    None,
+                    item,
+                    "expected key.path=value".into(),
+                ));
+            };
+            let path = path.trim();
+            let value: toml::Value = toml::from_str::<toml::Table>(&format!("v = {value}"))
+                .ok()
+                .and_then(|mut t| t.remove("v"))
+                .ok_or_else(|| {
+                    scene_error(
+                        &where_,
+                        None,
+                        path,
+                        format!(
+                            "{value:?} is not a TOML value (strings need quotes: \
+                             solver.kind=\"xpbd\")"
+                        ),
+                    )
+                })?;
+            set_path(&mut doc, path, value).map_err(|m| scene_error(&where_, None, path, m))?;
+            let text = toml::to_string(&doc).expect("a TOML table serialises");
+            let scene: Scene = toml::from_str(&text).map_err(|e| {
+                let mut err = de_error(&text, &where_, &e);
+                if let ClothError::Scene { line, column, .. } = &mut err {
+                    *line = 0;
+                    *column = 0;
+                }
+                err
+            })?;
+            if let Err(bad) = scene.check() {
+                return Err(scene_error(&where_, None, &bad.key, bad.message));
+            }
+        }
+        let text = toml::to_string(&doc).expect("a TOML table serialises");
+        Self::from_toml(&text, file)
+    }
+
+    /// The scene as TOML text; [`Scene::from_toml`] of it gives the same scene.
+    #[must_use]
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("a scene serialises to TOML")
+    }
+
+    /// The integrator named in `[solver] kind`.
+    #[must_use]
+    pub fn integrator(&self) -> Integrator {
+        Integrator::from_name(&self.solver.kind).unwrap_or_default()
+    }
+
+    /// Number of particles and springs the scene builds.
+    #[must_use]
+    pub fn counts(&self) -> (u64, u64) {
+        let (r, c) = (
+            u64::from(self.cloth.resolution[0]),
+            u64::from(self.cloth.resolution[1]),
+        );
+        let springs = (r - 1) * c
+            + r * (c - 1)
+            + 2 * (r - 1) * (c - 1)
+            + r * c.saturating_sub(2)
+            + c * r.saturating_sub(2);
+        (r * c, springs)
+    }
+
+    fn check(&self) -> std::result::Result<(), Invalid> {
+        positive("duration", self.duration)?;
+        let c = &self.cloth;
+        for (i, &n) in c.resolution.iter().enumerate() {
+            if !(2..=MAX_GRID_SIDE as u32).contains(&n) {
+                return Err(invalid(
+                    "cloth.resolution",
+                    c.resolution,
+                    &format!(
+                        "[rows, cols] each in 2 ..= {MAX_GRID_SIDE} ({} is {n})",
+                        ["rows", "cols"][i]
+                    ),
+                ));
+            }
+        }
+        if let Some(size) = c.size {
+            positive("cloth.size", size[0]).and(positive("cloth.size", size[1]))?;
+        }
+        if let Some(sp) = c.spacing {
+            positive("cloth.spacing", sp[0]).and(positive("cloth.spacing", sp[1]))?;
+        }
+        if c.size.is_some() && c.spacing.is_some() {
+            return Err(invalid(
+                "cloth.spacing",
+                c.spacing,
+                "either `size` or `spacing`, not both",
+            ));
+        }
+        finite3("cloth.origin", c.origin)?;
+        finite3("cloth.rotation", c.rotation)?;
+        finite3("cloth.velocity", c.velocity)?;
+        match (c.density, c.mass_per_particle) {
+            (Some(_), Some(_)) => {
+                return Err(invalid(
+                    "cloth.mass_per_particle",
+                    c.mass_per_particle,
+                    "either `density` or `mass_per_particle`, not both",
+                ));
+            }
+            (Some(d), None) => positive("cloth.density", d)?,
+            (None, Some(m)) => positive("cloth.mass_per_particle", m)?,
+            (None, None) => {}
+        }
+        let n = c.resolution[0] * c.resolution[1];
+        if let Some(&i) = c.pins.indices.iter().find(|&&i| i >= n) {
+            return Err(invalid(
+                "cloth.pins.indices",
+                i,
+                &format!(
+                    "particle indices 0 ..= {} (the grid has {n} particles)",
+                    n - 1
+                ),
+            ));
+        }
+        for (name, s) in [
+            ("warp", self.material.warp),
+            ("weft", self.material.weft),
+            ("shear", self.material.shear),
+            ("bend", self.material.bend),
+        ] {
+            non_negative(&format!("material.{name}.stiffness"), s.stiffness)?;
+            non_negative(&format!("material.{name}.damping"), s.damping)?;
+        }
+        let f = &self.forces;
+        finite3("forces.gravity", f.gravity)?;
+        non_negative("forces.damping", f.damping)?;
+        non_negative("forces.air.density", f.air.density)?;
+        non_negative("forces.air.drag", f.air.drag)?;
+        non_negative("forces.air.lift", f.air.lift)?;
+        finite3("forces.air.wind", f.air.wind)?;
+        if let Some(g) = f.air.gust {
+            if !(g.amplitude.is_finite() && (0.0..=1.0).contains(&g.amplitude)) {
+                return Err(invalid("forces.air.gust.amplitude", g.amplitude, "0 ..= 1"));
+            }
+            positive("forces.air.gust.frequency", g.frequency)?;
+        }
+        for (i, col) in self.colliders.iter().enumerate() {
+            let key = |k: &str| format!("colliders[{i}].{k}");
+            match col.kind {
+                ColliderKind::Sphere => {
+                    let center = col.center.ok_or_else(|| {
+                        invalid(
+                            key("center"),
+                            "missing",
+                            "a sphere needs `center` and `radius`",
+                        )
+                    })?;
+                    finite3(&key("center"), center)?;
+                    let r = col.radius.ok_or_else(|| {
+                        invalid(
+                            key("radius"),
+                            "missing",
+                            "a sphere needs `center` and `radius`",
+                        )
+                    })?;
+                    positive(&key("radius"), r)?;
+                }
+                ColliderKind::Plane => {
+                    let point = col.point.ok_or_else(|| {
+                        invalid(
+                            key("point"),
+                            "missing",
+                            "a plane needs `point` and `normal`",
+                        )
+                    })?;
+                    finite3(&key("point"), point)?;
+                    let normal = col.normal.ok_or_else(|| {
+                        invalid(
+                            key("normal"),
+                            "missing",
+                            "a plane needs `point` and `normal`",
+                        )
+                    })?;
+                    finite3(&key("normal"), normal)?;
+                    if Vec3::from(normal).length() < 1e-6 {
+                        return Err(invalid(key("normal"), normal, "a non-zero vector"));
+                    }
+                }
+            }
+            finite3(&key("velocity"), col.velocity)?;
+            non_negative(&key("thickness"), col.thickness)?;
+            non_negative(&key("friction.static"), col.friction.static_coefficient)?;
+            non_negative(&key("friction.kinetic"), col.friction.kinetic_coefficient)?;
+        }
+        let s = &self.solver;
+        if Integrator::from_name(&s.kind).is_none() {
+            let names: Vec<&str> = Integrator::ALL.iter().map(|i| i.name()).collect();
+            return Err(invalid("solver.kind", &s.kind, &names.join(", ")));
+        }
+        positive("solver.dt", s.dt)?;
+        match &s.substeps {
+            SubstepsDesc::Count(n) if !(1..=crate::config::MAX_SUBSTEPS).contains(n) => {
+                return Err(invalid(
+                    "solver.substeps",
+                    n,
+                    &format!("1 ..= {} or \"auto\"", crate::config::MAX_SUBSTEPS),
+                ));
+            }
+            SubstepsDesc::Word(w) if w != "auto" => {
+                return Err(invalid(
+                    "solver.substeps",
+                    w,
+                    "an integer 1 ..= 100000 or \"auto\"",
+                ));
+            }
+            _ => {}
+        }
+        if let Some(l) = s.strain_limit {
+            positive("solver.strain_limit", l)?;
+        }
+        if !(s.implicit.tolerance.is_finite()
+            && s.implicit.tolerance > 0.0
+            && s.implicit.tolerance < 1.0)
+        {
+            return Err(invalid(
+                "solver.implicit.tolerance",
+                s.implicit.tolerance,
+                "a number in (0, 1)",
+            ));
+        }
+        if s.implicit.max_iterations == 0 {
+            return Err(invalid(
+                "solver.implicit.max_iterations",
+                0,
+                "an integer >= 1",
+            ));
+        }
+        if !(1..=1000).contains(&s.xpbd.iterations) {
+            return Err(invalid(
+                "solver.xpbd.iterations",
+                s.xpbd.iterations,
+                "1 ..= 1000",
+            ));
+        }
+        non_negative("solver.xpbd.tether_slack", s.xpbd.tether_slack)?;
+        if !(s.limits.max_stretch_ratio.is_finite() && s.limits.max_stretch_ratio > 1.0) {
+            return Err(invalid(
+                "solver.limits.max_stretch_ratio",
+                s.limits.max_stretch_ratio,
+                "a finite number > 1",
+            ));
+        }
+        positive("solver.limits.max_speed", s.limits.max_speed)?;
+        if let Some(cam) = &self.camera {
+            finite3("camera.eye", cam.eye)?;
+            finite3("camera.target", cam.target)?;
+            if !(cam.fov_degrees.is_finite() && cam.fov_degrees > 0.0 && cam.fov_degrees < 180.0) {
+                return Err(invalid(
+                    "camera.fov_degrees",
+                    cam.fov_degrees,
+                    "a number in (0, 180)",
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The simulation configuration this scene describes (substeps resolved).
+    #[must_use]
+    pub fn config(&self, min_mass: f32) -> SimConfig {
+        let f = &self.forces;
+        let s = &self.solver;
+        let m = &self.material;
+        let sp = |d: SpringDesc| SpringParams::new(d.stiffness, d.damping);
+        let mut config = SimConfig {
+            dt: s.dt,
+            substeps: 1,
+            integrator: self.integrator(),
+            gravity: Vec3::from(f.gravity),
+            damping: f.damping,
+            material: Material {
+                warp: sp(m.warp),
+                weft: sp(m.weft),
+                shear: sp(m.shear),
+                bend: sp(m.bend),
+            },
+            air: Air {
+                density: f.air.density,
+                drag_coefficient: f.air.drag,
+                lift_coefficient: f.air.lift,
+                wind: Vec3::from(f.air.wind),
+                gust: f.air.gust.map(|g| Gust {
+                    amplitude: g.amplitude,
+                    frequency: g.frequency,
+                }),
+            },
+            forces: ForceSwitches {
+                gravity: f.enabled.gravity,
+                springs: f.enabled.springs,
+                dashpots: f.enabled.dashpots,
+                damping: f.enabled.damping,
+                air: f.enabled.air,
+            },
+            limits: StabilityLimits {
+                max_stretch_ratio: s.limits.max_stretch_ratio,
+                max_speed: s.limits.max_speed,
+            },
+            strain_limit: s.strain_limit,
+            implicit: ImplicitSettings {
+                tolerance: s.implicit.tolerance,
+                max_iterations: s.implicit.max_iterations,
+            },
+            xpbd: XpbdSettings::default(),
+        };
+        match s.substeps {
+            SubstepsDesc::Count(n) => config.substeps = n,
+            SubstepsDesc::Word(_) => tune_for_integrator(&mut config, min_mass),
+        }
+        config.xpbd = XpbdSettings {
+            iterations: s.xpbd.iterations,
+            tethers: s.xpbd.tethers,
+            tether_slack: s.xpbd.tether_slack,
+        };
+        config
+    }
+
+    /// Builds the simulation.
+    pub fn build(&self) -> Result<Simulation> {
+        let c = &self.cloth;
+        let [rows, cols] = c.resolution;
+        let mut grid = GridBuilder::new(rows as usize, cols as usize)
+            .orientation(match c.orientation {
+                OrientationDesc::Horizontal => Orientation::Horizontal,
+                OrientationDesc::Vertical => Orientation::Vertical,
+            })
+            .origin(Vec3::from(c.origin))
+            .rotation(Quat::from_euler(
+                EulerRot::XYZ,
+                c.rotation[0].to_radians(),
+                c.rotation[1].to_radians(),
+                c.rotation[2].to_radians(),
+            ))
+            .velocity(Vec3::from(c.velocity))
+            .mass(match (c.density, c.mass_per_particle) {
+                (_, Some(m)) => Mass::PerParticle(m),
+                (Some(d), None) => Mass::ArealDensity(d),
+                (None, None) => Mass::default(),
+            });
+        grid = match (c.size, c.spacing) {
+            (_, Some(sp)) => grid.spacing(sp[0], sp[1]),
+            (Some(size), None) => grid.size(size[0], size[1]),
+            (None, None) => grid,
+        };
+        for corner in &c.pins.corners {
+            grid = grid.pin_corner(match corner {
+                CornerDesc::TopLeft => Corner::TopLeft,
+                CornerDesc::TopRight => Corner::TopRight,
+                CornerDesc::BottomLeft => Corner::BottomLeft,
+                CornerDesc::BottomRight => Corner::BottomRight,
+            });
+        }
+        for edge in &c.pins.edges {
+            grid = grid.pin_edge(match edge {
+                EdgeDesc::Top => Edge::Top,
+                EdgeDesc::Bottom => Edge::Bottom,
+                EdgeDesc::Left => Edge::Left,
+                EdgeDesc::Right => Edge::Right,
+            });
+        }
+        grid = grid.pin_indices(c.pins.indices.iter().copied());
+        let cloth = grid.build()?;
+        let min_mass = cloth
+            .particles
+            .mass
+            .iter()
+            .copied()
+            .fold(f32::INFINITY, f32::min);
+        let mut sim = Simulation::new(cloth, self.config(min_mass))?;
+        for col in &self.colliders {
+            let shape = match col.kind {
+                ColliderKind::Sphere => Shape::Sphere {
+                    center: Vec3::from(col.center.unwrap_or_default()),
+                    radius: col.radius.unwrap_or(1.0),
+                },
+                ColliderKind::Plane => Shape::Plane {
+                    point: Vec3::from(col.point.unwrap_or_default()),
+                    normal: Vec3::from(col.normal.unwrap_or([0.0, 1.0, 0.0])),
+                },
+            };
+            sim.add_collider(Collider {
+                shape,
+                velocity: Vec3::from(col.velocity),
+                thickness: col.thickness,
+                friction: Friction::new(
+                    col.friction.static_coefficient,
+                    col.friction.kinetic_coefficient,
+                ),
+            })?;
+        }
+        Ok(sim)
+    }
+}
+
+/// Sets `path` (dotted, `colliders[1].radius` style indices allowed) in a TOML table.
+fn set_path(
+    doc: &mut toml::Table,
+    path: &str,
+    value: toml::Value,
+) -> std::result::Result<(), String> {
+    let parts: Vec<&str> = path.split('.').collect();
+    let mut table = doc;
+    for (i, part) in parts.iter().enumerate() {
+        let last = i + 1 == parts.len();
+        let (name, index) = match part.split_once('[') {
+            Some((n, rest)) => {
+                let idx: usize = rest
+                    .strip_suffix(']')
+                    .and_then(|s| s.parse().ok())
+                    .ok_or_else(|| format!("bad index in `{part}`"))?;
+                (n, Some(idx))
+            }
+            None => (*part, None),
+        };
+        if name.is_empty() {
+            return Err("empty key".into());
+        }
+        match index {
+            None if last => {
+                table.insert(name.to_string(), value);
+                return Ok(());
+            }
+            None => {
+                let entry = table
+                    .entry(name.to_string())
+                    .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+                table = entry
+                    .as_table_mut()
+                    .ok_or_else(|| format!("`{name}` is not a table"))?;
+            }
+            Some(idx) => {
+                let array = table
+                    .get_mut(name)
+                    .and_then(toml::Value::as_array_mut)
+                    .ok_or_else(|| format!("`{name}` is not an array of tables"))?;
+                let len = array.len();
+                let item = array.get_mut(idx).ok_or_else(|| {
+                    format!("`{name}` has {len} entries; index {idx} is out of range")
+                })?;
+                if last {
+                    *item = value;
+                    return Ok(());
+                }
+                table = item
+                    .as_table_mut()
+                    .ok_or_else(|| format!("`{name}[{idx}]` is not a table"))?;
+            }
+        }
+    }
+    Ok(())
+}
+
+fn scene_error(file: &str, pos: Option<(usize, usize)>, key: &str, message: String) -> ClothError {
+    let (line, column) = pos.unwrap_or((0, 0));
+    ClothError::Scene {
+        file: file.to_string(),
+        line,
+        column,
+        key: key.to_string(),
+        message,
+    }
+}
+
+/// 1-based line and column of byte offset `at`.
+fn line_col(source: &str, at: usize) -> (usize, usize) {
+    let before = &source[..at.min(source.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
+}
+
+/// Known keys of every table, for "did you mean" suggestions.
+const KNOWN_KEYS: &[&str] = &[
+    "name",
+    "description",
+    "duration",
+    "cloth",
+    "material",
+    "forces",
+    "colliders",
+    "solver",
+    "camera",
+    "resolution",
+    "size",
+    "spacing",
+    "orientation",
+    "origin",
+    "rotation",
+    "velocity",
+    "density",
+    "mass_per_particle",
+    "pins",
+    "corners",
+    "edges",
+    "indices",
+    "warp",
+    "weft",
+    "shear",
+    "bend",
+    "stiffness",
+    "damping",
+    "gravity",
+    "air",
+    "enabled",
+    "drag",
+    "lift",
+    "wind",
+    "gust",
+    "amplitude",
+    "frequency",
+    "springs",
+    "dashpots",
+    "type",
+    "center",
+    "radius",
+    "point",
+    "normal",
+    "thickness",
+    "friction",
+    "static",
+    "kinetic",
+    "kind",
+    "dt",
+    "substeps",
+    "strain_limit",
+    "implicit",
+    "xpbd",
+    "limits",
+    "tolerance",
+    "max_iterations",
+    "iterations",
+    "tethers",
+    "tether_slack",
+    "max_stretch_ratio",
+    "max_speed",
+    "eye",
+    "target",
+    "fov_degrees",
+];
+
+fn de_error(source: &str, file: &str, e: &toml::de::Error) -> ClothError {
+    let pos = e.span().map(|s| line_col(source, s.start));
+    let mut message = e.message().to_string();
+    let key = e
+        .span()
+        .map(|s| source[s.start..s.end.min(source.len())].trim().to_string())
+        .unwrap_or_default();
+    if let Some((field, expected)) = message
+        .strip_prefix("unknown field `")
+        .and_then(|rest| rest.split_once('`'))
+    {
+        let candidates: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
+        let pool: Vec<&str> = if candidates.is_empty() {
+            KNOWN_KEYS.to_vec()
+        } else {
+            candidates
+        };
+        if let Some(best) = pool
+            .iter()
+            .map(|k| (strsim::jaro_winkler(field, k), *k))
+            .filter(|(score, _)| *score > 0.7)
+            .max_by(|a, b| a.0.total_cmp(&b.0))
+        {
+            let hint = format!("; did you mean `{}`?", best.1);
+            message.push_str(&hint);
+        }
+    }
+    let key = if key.len() > 60 { String::new() } else { key };
+    scene_error(file, pos, &key, message)
+}
+
+/// Byte span of the value at a dotted key path in `source` (best effort, for positions).
+fn span_of(source: &str, path: &str) -> Option<std::ops::Range<usize>> {
+    let root = toml::de::DeTable::parse(source).ok()?;
+    let mut table = root.get_ref();
+    let mut span = None;
+    let parts: Vec<&str> = path.split('.').collect();
+    for (i, part) in parts.iter().enumerate() {
+        let (name, index) = match part.split_once('[') {
+            Some((n, rest)) => (
+                n,
+                rest.strip_suffix(']').and_then(|s| s.parse::<usize>().ok()),
+            ),
+            None => (*part, None),
+        };
+        let (_, value) = table.iter().find(|(k, _)| k.get_ref() == name)?;
+        span = Some(value.span());
+        let mut value = value.get_ref();
+        if let (Some(idx), toml::de::DeValue::Array(items)) = (index, value) {
+            let item = items.get(idx)?;
+            span = Some(item.span());
+            value = item.get_ref();
+        }
+        if i + 1 < parts.len() {
+            match value {
+                toml::de::DeValue::Table(t) => table = t,
+                _ => return span,
+            }
+        }
+    }
+    span
+}
+
+/// The built-in scenes: `(name, TOML source)`, shipped in the repository's `scenes/` folder and
+/// embedded here.
+pub const BUILTIN: &[(&str, &str)] = &[
+    ("drape", include_str!("../../../scenes/drape.toml")),
+    ("hanging", include_str!("../../../scenes/hanging.toml")),
+    ("flag", include_str!("../../../scenes/flag.toml")),
+    ("peer-ball", include_str!("../../../scenes/peer-ball.toml")),
+    ("table", include_str!("../../../scenes/table.toml")),
+    (
+        "euler-sheet",
+        include_str!("../../../scenes/euler-sheet.toml"),
+    ),
+    (
+        "verlet-swing",
+        include_str!("../../../scenes/verlet-swing.toml"),
+    ),
+    (
+        "implicit-drape",
+        include_str!("../../../scenes/implicit-drape.toml"),
+    ),
+    (
+        "xpbd-curtain",
+        include_str!("../../../scenes/xpbd-curtain.toml"),
+    ),
+];
+
+/// The TOML source of built-in scene `name`.
+#[must_use]
+pub fn builtin_source(name: &str) -> Option<&'static str> {
+    BUILTIN.iter().find(|(n, _)| *n == name).map(|(_, s)| *s)
+}
+
+/// Built-in scene `name`, parsed.
+///
+/// # Panics
+/// Never for the names in [`BUILTIN`] (a test parses each of them).
+pub fn builtin(name: &str) -> Option<Scene> {
+    builtin_source(name).map(|src| {
+        Scene::from_toml(src, &format!("scenes/{name}.toml")).expect("built-in scenes are valid")
+    })
+}
+
+/// Reads a scene: a built-in name, or a path to a TOML file. Returns the scene and its source
+/// text. A missing, unreadable, empty or binary file is an error naming it.
+pub fn load(name_or_path: &str, overrides: &[String]) -> Result<(Scene, String)> {
+    let (source, file) = match builtin_source(name_or_path) {
+        Some(src) => (src.to_string(), format!("scenes/{name_or_path}.toml")),
+        None => {
+            let path = std::path::Path::new(name_or_path);
+            let bytes = std::fs::read(path).map_err(|e| {
+                let names: Vec<&str> = BUILTIN.iter().map(|(n, _)| *n).collect();
+                scene_error(
+                    name_or_path,
+                    None,
+                    "",
+                    format!(
+                        "cannot read the scene file ({e}); built-in scenes are: {}",
+                        names.join(", ")
+                    ),
+                )
+            })?;
+            let text = String::from_utf8(bytes).map_err(|_| {
+                scene_error(
+                    name_or_path,
+                    None,
+                    "",
+                    "the file is binary, not a TOML scene".into(),
+                )
+            })?;
+            (text, name_or_path.to_string())
+        }
+    };
+    let scene = Scene::from_toml_with_overrides(&source, &file, overrides)?;
+    Ok((scene, source))
+}

@@ -1,0 +1,764 @@
+//! The window app: a winit [`ApplicationHandler`] that steps the simulation on a fixed-timestep
+//! accumulator, turns input into camera motion, picking and panel actions, and draws with the
+//! [`Renderer`] and egui.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::anyhow;
+use cloth_core::glam::{Vec2, Vec3};
+use cloth_core::{Integrator, SimConfig, Simulation};
+use winit::application::ApplicationHandler;
+use winit::dpi::PhysicalSize;
+use winit::event::{ElementState, KeyEvent, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, EventLoop};
+use winit::keyboard::{KeyCode, ModifiersState, PhysicalKey};
+use winit::window::{Window, WindowId};
+
+use crate::camera::{Camera, FlyController, OrbitController, Projection};
+use crate::gpu::{Frame, Gpu, WindowSurface};
+use crate::renderer::{RenderOptions, Renderer, Targets};
+use crate::scene::SceneKind;
+use crate::timestep::FixedStep;
+use crate::ui::{Action, CameraMode, Panel, Status};
+
+/// Steps allowed per frame before the simulation runs slower than real time.
+pub const MAX_STEPS_PER_FRAME: u32 = 4;
+
+/// What `cloth view` was asked for.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewOptions {
+    /// The scene.
+    pub scene: SceneKind,
+    /// Grid resolution.
+    pub resolution: usize,
+    /// The integrator.
+    pub integrator: Integrator,
+    /// Quit after this many frames.
+    pub frames: Option<u64>,
+    /// Initial window size, pixels.
+    pub size: [u32; 2],
+    /// Save the last frame (scene and panel) to this PNG before quitting (with `frames`).
+    pub screenshot: Option<std::path::PathBuf>,
+}
+
+/// Opens the viewer window and runs until it is closed (or `options.frames` are drawn).
+///
+/// # Errors
+/// When there is no display, no adapter, or the scene cannot be built.
+pub fn run(options: ViewOptions) -> anyhow::Result<()> {
+    let world = World::new(options.scene, options.resolution, options.integrator)?;
+    let event_loop = EventLoop::new().map_err(|e| {
+        anyhow!(
+            "no display to open a window on ({e}); set DISPLAY or WAYLAND_DISPLAY, or run \
+             under a virtual display with `xvfb-run -a cloth view` (apt-get install xvfb xauth)"
+        )
+    })?;
+    if options.screenshot.is_some() && options.frames.is_none() {
+        anyhow::bail!("a screenshot needs a frame count to take it at (--frames N)");
+    }
+    let mut app = App::new(options, world);
+    event_loop.run_app(&mut app)?;
+    match app.fatal {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
+}
+
+/// The simulation and how it is being run.
+#[derive(Debug)]
+struct World {
+    sim: Simulation,
+    scene: SceneKind,
+    resolution: usize,
+    integrator: Integrator,
+    stepper: FixedStep,
+    paused: bool,
+    message: Option<String>,
+    sim_ms: f32,
+}
+
+impl World {
+    fn new(scene: SceneKind, resolution: usize, integrator: Integrator) -> anyhow::Result<Self> {
+        let sim = scene.build(resolution, integrator)?;
+        let stepper = FixedStep::new(sim.config().dt, MAX_STEPS_PER_FRAME);
+        Ok(Self {
+            sim,
+            scene,
+            resolution,
+            integrator,
+            stepper,
+            paused: false,
+            message: None,
+            sim_ms: 0.0,
+        })
+    }
+
+    /// Back to the initial state, keeping `config` if given.
+    fn reset(&mut self, config: Option<SimConfig>) {
+        match self.scene.build(self.resolution, self.integrator) {
+            Ok(mut sim) => {
+                if let Some(c) = config
+                    && let Err(e) = sim.set_config(c)
+                {
+                    self.message = Some(e.to_string());
+                }
+                self.sim = sim;
+                self.message = None;
+            }
+            Err(e) => self.message = Some(e.to_string()),
+        }
+        self.stepper = FixedStep::new(self.sim.config().dt, MAX_STEPS_PER_FRAME);
+    }
+
+    /// One step, with the grabbed particle (if any) moved to its target. On instability the
+    /// simulation keeps its last good state and the world pauses.
+    fn step(&mut self, grab: Option<(usize, Vec3)>) -> bool {
+        if let Some((i, target)) = grab {
+            let _ = self.sim.set_pin_target(i, target);
+        }
+        match self.sim.step() {
+            Ok(_) => true,
+            Err(e) => {
+                let msg = e.to_string();
+                eprintln!("cloth: {msg}");
+                self.message = Some(msg);
+                self.paused = true;
+                false
+            }
+        }
+    }
+}
+
+/// What the mouse is doing.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Drag {
+    None,
+    Orbit,
+    Pan,
+    Look,
+    /// Holding particle `index` on the camera-facing plane through `plane`; `was_pinned`
+    /// restores its pin on release.
+    Grab {
+        index: usize,
+        plane: Vec3,
+        target: Vec3,
+        was_pinned: bool,
+    },
+}
+
+/// The window, GPU and drawing state (exists between `resumed` and exit).
+struct Gfx {
+    window: Arc<Window>,
+    gpu: Gpu,
+    surface: WindowSurface,
+    renderer: Renderer,
+    targets: Targets,
+    egui_ctx: egui::Context,
+    egui_state: egui_winit::State,
+    egui_renderer: egui_wgpu::Renderer,
+}
+
+impl std::fmt::Debug for Gfx {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Gfx")
+            .field("adapter", &self.gpu.adapter_name())
+            .field("size", &self.targets.size)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The viewer application.
+#[derive(Debug)]
+struct App {
+    options: ViewOptions,
+    world: World,
+    gfx: Option<Gfx>,
+    camera: Camera,
+    projection: Projection,
+    orbit: OrbitController,
+    fly: FlyController,
+    mode: CameraMode,
+    render: RenderOptions,
+    panel: Panel,
+    cursor: Vec2,
+    modifiers: ModifiersState,
+    drag: Drag,
+    last_frame: Instant,
+    fps: f32,
+    frames: u64,
+    fatal: Option<anyhow::Error>,
+}
+
+impl App {
+    fn new(options: ViewOptions, world: World) -> Self {
+        let scene = world.scene;
+        Self {
+            panel: Panel::new(scene, world.resolution, world.integrator),
+            world,
+            gfx: None,
+            camera: crate::default_camera(scene),
+            projection: Projection::new(options.size[0], options.size[1], crate::FOVY),
+            options,
+            orbit: OrbitController::default(),
+            fly: FlyController::default(),
+            mode: CameraMode::Orbit,
+            render: crate::default_options(scene),
+            cursor: Vec2::ZERO,
+            modifiers: ModifiersState::empty(),
+            drag: Drag::None,
+            last_frame: Instant::now(),
+            fps: 0.0,
+            frames: 0,
+            fatal: None,
+        }
+    }
+
+    fn init(&mut self, event_loop: &ActiveEventLoop) -> anyhow::Result<Gfx> {
+        let [w, h] = self.options.size;
+        let attributes = Window::default_attributes()
+            .with_title(format!("cloth — {}", self.world.scene))
+            .with_inner_size(PhysicalSize::new(w, h));
+        let window = Arc::new(event_loop.create_window(attributes)?);
+        let (gpu, surface) = Gpu::for_window(event_loop.owned_display_handle(), window.clone())?;
+        let size = window.inner_size();
+        let surface = WindowSurface::new(&gpu, surface, size.width, size.height)?;
+        let format = surface.config.format;
+        let samples = gpu.sample_count(format, 4);
+        let renderer = Renderer::new(&gpu.device, format, samples);
+        let targets = Targets::new(
+            &gpu.device,
+            format,
+            [surface.config.width, surface.config.height],
+            samples,
+        );
+        self.projection
+            .resize(surface.config.width, surface.config.height);
+        let egui_ctx = egui::Context::default();
+        let egui_state = egui_winit::State::new(
+            egui_ctx.clone(),
+            egui_ctx.viewport_id(),
+            &window,
+            Some(window.scale_factor() as f32),
+            None,
+            Some(gpu.device.limits().max_texture_dimension_2d as usize),
+        );
+        let egui_renderer =
+            egui_wgpu::Renderer::new(&gpu.device, format, egui_wgpu::RendererOptions::default());
+        eprintln!(
+            "cloth view: {} on {}, {samples}x MSAA",
+            self.world.scene,
+            gpu.adapter_name()
+        );
+        Ok(Gfx {
+            window,
+            gpu,
+            surface,
+            renderer,
+            targets,
+            egui_ctx,
+            egui_state,
+            egui_renderer,
+        })
+    }
+
+    fn grab_target(&self) -> Option<(usize, Vec3)> {
+        match self.drag {
+            Drag::Grab { index, target, .. } => Some((index, target)),
+            _ => None,
+        }
+    }
+
+    fn window_size(&self) -> [u32; 2] {
+        self.gfx
+            .as_ref()
+            .map_or(self.options.size, |g| g.targets.size)
+    }
+
+    fn pick(&self) -> Option<(usize, f32)> {
+        let ray = self
+            .camera
+            .ray_through(&self.projection, self.window_size(), self.cursor);
+        ray.pick(
+            &self.world.sim.particles().position,
+            self.world.sim.topology().triangles(),
+        )
+    }
+
+    fn reset_view(&mut self) {
+        self.camera = crate::default_camera(self.world.scene);
+    }
+
+    fn release_grab(&mut self) {
+        if let Drag::Grab {
+            index, was_pinned, ..
+        } = self.drag
+            && !was_pinned
+        {
+            let _ = self.world.sim.unpin(index);
+        }
+        self.drag = Drag::None;
+    }
+
+    fn on_mouse_button(&mut self, button: MouseButton, state: ElementState) {
+        if state == ElementState::Released {
+            self.release_grab();
+            return;
+        }
+        let pin_click = self.modifiers.control_key() || self.modifiers.shift_key();
+        self.drag = match (self.mode, button) {
+            (_, MouseButton::Left) if pin_click => {
+                if let Some((i, _)) = self.pick() {
+                    let sim = &mut self.world.sim;
+                    let _ = if sim.particles().is_pinned(i) {
+                        sim.unpin(i)
+                    } else {
+                        sim.pin(i)
+                    };
+                }
+                Drag::None
+            }
+            (CameraMode::Orbit, MouseButton::Left) => match self.pick() {
+                Some((index, _)) => {
+                    let was_pinned = self.world.sim.particles().is_pinned(index);
+                    let _ = self.world.sim.pin(index);
+                    let p = self.world.sim.particles().position[index];
+                    Drag::Grab {
+                        index,
+                        plane: p,
+                        target: p,
+                        was_pinned,
+                    }
+                }
+                None => Drag::Orbit,
+            },
+            (CameraMode::Orbit, _) => Drag::Pan,
+            (CameraMode::Fly, _) => Drag::Look,
+        };
+    }
+
+    fn on_cursor(&mut self, pos: Vec2) {
+        let delta = pos - self.cursor;
+        self.cursor = pos;
+        let size = self.window_size();
+        match self.drag {
+            Drag::None => {}
+            Drag::Orbit => self.orbit.rotate(&mut self.camera, delta.x, delta.y),
+            Drag::Pan => {
+                self.orbit.pan(
+                    &mut self.camera,
+                    &self.projection,
+                    size[1],
+                    delta.x,
+                    delta.y,
+                );
+            }
+            Drag::Look => self.fly.look(&mut self.camera, delta.x, delta.y),
+            Drag::Grab {
+                index,
+                plane,
+                was_pinned,
+                ..
+            } => {
+                let ray = self.camera.ray_through(&self.projection, size, pos);
+                let normal = self.camera.forward();
+                if let Some(t) = ray.hit_plane(plane, normal) {
+                    let target = ray.at(t);
+                    self.drag = Drag::Grab {
+                        index,
+                        plane,
+                        target,
+                        was_pinned,
+                    };
+                    if self.world.paused {
+                        let _ = self.world.sim.set_position(index, target);
+                    }
+                }
+            }
+        }
+    }
+
+    fn on_key(&mut self, event_loop: &ActiveEventLoop, event: &KeyEvent) {
+        let PhysicalKey::Code(code) = event.physical_key else {
+            return;
+        };
+        let pressed = event.state == ElementState::Pressed;
+        // held keys of the fly camera
+        let keys = &mut self.fly.keys;
+        match code {
+            KeyCode::KeyW => keys.forward = pressed,
+            KeyCode::KeyS => keys.back = pressed,
+            KeyCode::KeyA => keys.left = pressed,
+            KeyCode::KeyD => keys.right = pressed,
+            KeyCode::KeyE | KeyCode::PageUp => keys.up = pressed,
+            KeyCode::KeyQ | KeyCode::PageDown => keys.down = pressed,
+            KeyCode::ShiftLeft | KeyCode::ShiftRight => keys.fast = pressed,
+            _ => {}
+        }
+        if !pressed || event.repeat {
+            return;
+        }
+        match code {
+            KeyCode::Space => self.apply(Action::TogglePause),
+            KeyCode::KeyN => self.apply(Action::Step),
+            KeyCode::KeyR => self.apply(Action::Reset),
+            KeyCode::KeyC => {
+                self.mode = match self.mode {
+                    CameraMode::Orbit => CameraMode::Fly,
+                    CameraMode::Fly => CameraMode::Orbit,
+                };
+            }
+            KeyCode::KeyW if self.mode == CameraMode::Orbit => {
+                self.render.wireframe = !self.render.wireframe;
+            }
+            KeyCode::Home => self.apply(Action::ResetView),
+            KeyCode::Tab => self.panel.visible = !self.panel.visible,
+            KeyCode::Escape => event_loop.exit(),
+            _ => {}
+        }
+    }
+
+    fn apply(&mut self, action: Action) {
+        let world = &mut self.world;
+        match action {
+            Action::TogglePause => {
+                world.paused = !world.paused;
+                world.stepper.reset();
+            }
+            Action::Step => {
+                world.paused = true;
+                let grab = self.grab_target();
+                self.world.step(grab);
+            }
+            Action::Reset => {
+                self.drag = Drag::None;
+                let config = *world.sim.config();
+                world.reset(Some(config));
+            }
+            Action::Rebuild {
+                scene,
+                resolution,
+                integrator,
+            } => {
+                self.drag = Drag::None;
+                let changed_scene = scene != world.scene;
+                let (old_scene, old_res, old_int) =
+                    (world.scene, world.resolution, world.integrator);
+                world.scene = scene;
+                world.resolution = resolution;
+                world.integrator = integrator;
+                world.reset(None);
+                if world.message.is_some() {
+                    // keep running the old scene
+                    world.scene = old_scene;
+                    world.resolution = old_res;
+                    world.integrator = old_int;
+                } else if changed_scene {
+                    self.render.floor = Some(scene.display_floor());
+                    self.camera = crate::default_camera(scene);
+                    if let Some(g) = &self.gfx {
+                        g.window.set_title(&format!("cloth — {scene}"));
+                    }
+                }
+            }
+            Action::Config(config) => match world.sim.set_config(config) {
+                Ok(()) => {
+                    world.stepper.set_dt(config.dt);
+                    world.message = None;
+                }
+                Err(e) => world.message = Some(e.to_string()),
+            },
+            Action::Friction(friction) => {
+                for i in 0..world.sim.colliders().len() {
+                    let c = world.sim.colliders()[i].with_friction(friction);
+                    if let Err(e) = world.sim.set_collider(i, c) {
+                        world.message = Some(e.to_string());
+                    }
+                }
+            }
+            Action::ResetView => self.reset_view(),
+        }
+    }
+
+    fn status(&self, gpu: &Gpu) -> Status {
+        let sim = &self.world.sim;
+        let stats = sim.stats();
+        Status {
+            fps: self.fps,
+            sim_ms: self.world.sim_ms,
+            time: sim.time(),
+            particles: sim.particles().len(),
+            springs: sim.topology().springs().len(),
+            energy: stats.total_energy(),
+            max_strain: stats.max_strain.iter().copied().fold(0.0, f32::max),
+            paused: self.world.paused,
+            behind: self.world.stepper.behind(),
+            message: self.world.message.clone(),
+            adapter: gpu.adapter_name(),
+            friction: sim.colliders().first().map(|c| c.friction),
+        }
+    }
+
+    /// One frame: step, update the camera, run the panel, draw.
+    fn frame(&mut self, event_loop: &ActiveEventLoop) {
+        let now = Instant::now();
+        let elapsed = now - self.last_frame;
+        self.last_frame = now;
+        if elapsed > Duration::ZERO {
+            let fps = 1.0 / elapsed.as_secs_f32();
+            self.fps = if self.fps == 0.0 {
+                fps
+            } else {
+                0.9 * self.fps + 0.1 * fps
+            };
+        }
+
+        // simulation: whole fixed steps only
+        if !self.world.paused {
+            let n = self.world.stepper.steps(elapsed);
+            let t0 = Instant::now();
+            let grab = self.grab_target();
+            for _ in 0..n {
+                if !self.world.step(grab) {
+                    break;
+                }
+            }
+            let ms = 1e3 * t0.elapsed().as_secs_f32();
+            self.world.sim_ms = 0.9 * self.world.sim_ms + 0.1 * ms;
+        }
+        if self.mode == CameraMode::Fly {
+            self.fly
+                .update(&mut self.camera, elapsed.as_secs_f32().min(0.1));
+        }
+
+        let Some(mut gfx) = self.gfx.take() else {
+            return;
+        };
+        self.draw(&mut gfx);
+        self.gfx = Some(gfx);
+
+        self.frames += 1;
+        if self.options.frames.is_some_and(|n| self.frames >= n) {
+            event_loop.exit();
+        }
+    }
+
+    fn draw(&mut self, gfx: &mut Gfx) {
+        // the panel
+        let raw = gfx.egui_state.take_egui_input(&gfx.window);
+        let status = self.status(&gfx.gpu);
+        let config = *self.world.sim.config();
+        let mut actions = Vec::new();
+        let (panel, render, mode) = (&mut self.panel, &mut self.render, &mut self.mode);
+        let mut full = gfx.egui_ctx.run_ui(raw, |ui| {
+            actions = panel.show(ui, &config, render, mode, &status);
+        });
+        gfx.egui_state
+            .handle_platform_output(&gfx.window, std::mem::take(&mut full.platform_output));
+        for a in actions {
+            self.apply(a);
+        }
+
+        let [w, h] = gfx.targets.size;
+        let capture_due = self.options.screenshot.is_some()
+            && self.options.frames.is_some_and(|n| self.frames + 1 >= n);
+        let capture = capture_due.then(|| {
+            let texture = gfx.gpu.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("screenshot"),
+                size: wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: gfx.surface.config.format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            });
+            let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+            (texture, view)
+        });
+        let frame = match gfx.surface.acquire(&gfx.gpu) {
+            Frame::Ready(t) => Some(t),
+            Frame::Skip => None,
+        };
+        let Gpu { device, queue, .. } = &gfx.gpu;
+        // textures must be updated even when the frame is skipped
+        for (id, deltas) in full.textures_delta.set.drain() {
+            for delta in deltas {
+                gfx.egui_renderer.update_texture(device, queue, id, &delta);
+            }
+        }
+        let ppp = full.pixels_per_point;
+        let jobs = gfx
+            .egui_ctx
+            .tessellate(std::mem::take(&mut full.shapes), ppp);
+        if let Some(frame) = frame {
+            let surface_view = frame
+                .texture
+                .create_view(&wgpu::TextureViewDescriptor::default());
+            let view = capture.as_ref().map_or(&surface_view, |(_, v)| v);
+            self.projection.resize(w, h);
+            gfx.renderer.prepare(
+                device,
+                queue,
+                &self.world.sim,
+                &self.camera,
+                &self.projection,
+                &self.render,
+            );
+            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("frame"),
+            });
+            gfx.renderer.render(&mut encoder, &gfx.targets, view);
+            let screen = egui_wgpu::ScreenDescriptor {
+                size_in_pixels: [w, h],
+                pixels_per_point: ppp,
+            };
+            let extra =
+                gfx.egui_renderer
+                    .update_buffers(device, queue, &mut encoder, &jobs, &screen);
+            {
+                let mut pass = encoder
+                    .begin_render_pass(&wgpu::RenderPassDescriptor {
+                        label: Some("egui"),
+                        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                            view,
+                            depth_slice: None,
+                            resolve_target: None,
+                            ops: wgpu::Operations {
+                                load: wgpu::LoadOp::Load,
+                                store: wgpu::StoreOp::Store,
+                            },
+                        })],
+                        depth_stencil_attachment: None,
+                        timestamp_writes: None,
+                        occlusion_query_set: None,
+                        multiview_mask: None,
+                    })
+                    .forget_lifetime();
+                gfx.egui_renderer.render(&mut pass, &jobs, &screen);
+            }
+            queue.submit(extra.into_iter().chain([encoder.finish()]));
+            if let (Some((texture, _)), Some(path)) = (&capture, &self.options.screenshot) {
+                if let Err(e) = save_screenshot(&gfx.gpu, texture, path) {
+                    self.fatal = Some(e);
+                }
+            } else {
+                gfx.window.pre_present_notify();
+                queue.present(frame);
+            }
+        }
+        for id in full.textures_delta.free.drain() {
+            gfx.egui_renderer.free_texture(&id);
+        }
+    }
+}
+
+/// Reads back `texture` (the surface's format: RGBA or BGRA, 8 bits) and writes it as a PNG.
+fn save_screenshot(gpu: &Gpu, texture: &wgpu::Texture, path: &std::path::Path) -> anyhow::Result<()> {
+    let size = [texture.width(), texture.height()];
+    let readback = crate::offscreen::readback_buffer(&gpu.device, size);
+    let mut pixels = crate::offscreen::read_texture(
+        gpu,
+        texture,
+        &readback,
+        crate::offscreen::padded_row(size[0]),
+    )?;
+    if matches!(
+        texture.format(),
+        wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb
+    ) {
+        for px in pixels.chunks_exact_mut(4) {
+            px.swap(0, 2);
+        }
+    }
+    let img = image::RgbaImage::from_raw(size[0], size[1], pixels)
+        .ok_or_else(|| anyhow!("short screenshot readback"))?;
+    img.save(path)
+        .map_err(|e| anyhow!("cannot write {}: {e}", path.display()))?;
+    eprintln!("cloth view: wrote {}", path.display());
+    Ok(())
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.gfx.is_some() {
+            return;
+        }
+        match self.init(event_loop) {
+            Ok(gfx) => {
+                gfx.window.request_redraw();
+                self.gfx = Some(gfx);
+                self.last_frame = Instant::now();
+            }
+            Err(e) => {
+                self.fatal = Some(e);
+                event_loop.exit();
+            }
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        let Some(gfx) = self.gfx.as_mut() else {
+            return;
+        };
+        let response = gfx.egui_state.on_window_event(&gfx.window, &event);
+        let egui_pointer = gfx.egui_ctx.egui_wants_pointer_input();
+        let egui_keys = gfx.egui_ctx.egui_wants_keyboard_input();
+        match event {
+            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::Resized(size) => {
+                gfx.surface.resize(&gfx.gpu, size.width, size.height);
+                if size.width > 0 && size.height > 0 {
+                    gfx.targets = Targets::new(
+                        &gfx.gpu.device,
+                        gfx.surface.config.format,
+                        [size.width, size.height],
+                        gfx.renderer.samples(),
+                    );
+                    self.projection.resize(size.width, size.height);
+                }
+                gfx.window.request_redraw();
+            }
+            WindowEvent::RedrawRequested => {
+                let size = gfx.window.inner_size();
+                if size.width == 0 || size.height == 0 {
+                    // minimised: keep time from piling up, draw nothing
+                    self.last_frame = Instant::now();
+                    return;
+                }
+                self.frame(event_loop);
+            }
+            WindowEvent::ModifiersChanged(m) => self.modifiers = m.state(),
+            WindowEvent::KeyboardInput { event, .. } if !response.consumed && !egui_keys => {
+                self.on_key(event_loop, &event);
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                self.on_cursor(Vec2::new(position.x as f32, position.y as f32));
+            }
+            WindowEvent::MouseInput { state, button, .. } => {
+                let over_panel = response.consumed || egui_pointer;
+                if state == ElementState::Released || !over_panel {
+                    self.on_mouse_button(button, state);
+                }
+            }
+            WindowEvent::MouseWheel { delta, .. } if !response.consumed => {
+                let lines = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => y,
+                    MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
+                };
+                self.orbit.zoom(&mut self.camera, lines);
+            }
+            _ => {}
+        }
+    }
+
+    fn about_to_wait(&mut self, _event_loop: &ActiveEventLoop) {
+        if let Some(gfx) = &self.gfx {
+            gfx.window.request_redraw();
+        }
+    }
+}
