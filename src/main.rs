@@ -6,10 +6,12 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand};
-use cloth_core::{ClothError, Integrator, Simulation, SpringClass};
+
+mod export;
+mod sim_cmd;
+use cloth_core::{Integrator, Simulation};
 use cloth_view::SceneKind;
 
 const AFTER_HELP: &str = "\
@@ -44,14 +46,12 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Run a scene headless and print a table of its diagnostics.
-    Sim {
-        #[command(flatten)]
-        scene: SceneArgs,
-        /// Frames (steps of the scene's dt) to run.
-        #[arg(long, value_name = "N", default_value = "120", value_parser = parse_frames)]
-        frames: u64,
-    },
+    /// Run a scene headless: diagnostics table, mesh export, JSON report, checkpoints.
+    Sim(sim_cmd::SimArgs),
+    /// List the built-in scenes, or print one's TOML (--print NAME).
+    Scenes(sim_cmd::ScenesArgs),
+    /// Validate a scene and print its summary without running it.
+    Check(sim_cmd::CheckArgs),
     /// Step a scene, then render its last frame offscreen (no window) into a PNG.
     Render {
         #[command(flatten)]
@@ -143,7 +143,9 @@ fn main() -> ExitCode {
         screenshot: None,
     });
     match command {
-        Command::Sim { scene, frames } => sim(&scene, frames),
+        Command::Sim(args) => sim_cmd::sim(&args),
+        Command::Scenes(args) => sim_cmd::scenes(&args),
+        Command::Check(args) => sim_cmd::check(&args),
         Command::Render {
             scene,
             frames,
@@ -227,80 +229,4 @@ fn render(args: &SceneArgs, frames: u64, png: &std::path::Path, size: [u32; 2]) 
             ExitCode::FAILURE
         }
     }
-}
-
-fn sim(args: &SceneArgs, frames: u64) -> ExitCode {
-    let mut sim = match build(args) {
-        Ok(s) => s,
-        Err(code) => return code,
-    };
-    let (rows, cols) = sim.grid_size();
-    let cfg = *sim.config();
-    println!(
-        "scene {} {}x{} particles={} springs={} integrator={} dt={:.5} s substeps={}",
-        args.scene,
-        rows,
-        cols,
-        sim.particles().len(),
-        sim.topology().springs().len(),
-        cfg.integrator.name(),
-        cfg.dt,
-        cfg.substeps
-    );
-    println!(
-        "{:>6} {:>8} {:>12} {:>12} {:>10} {:>10} {:>10} {:>9} {:>8}",
-        "frame",
-        "t [s]",
-        "E_total [J]",
-        "E_kin [J]",
-        "strain_st",
-        "strain_sh",
-        "strain_bd",
-        "pen [m]",
-        "contacts"
-    );
-    let start = Instant::now();
-    let mut stepping = 0.0f64;
-    for frame in 1..=frames {
-        let t0 = Instant::now();
-        let result = sim.step();
-        stepping += t0.elapsed().as_secs_f64();
-        match result {
-            Ok(s) => {
-                if frame % 10 == 0 || frame == frames {
-                    println!(
-                        "{:>6} {:>8.3} {:>12.5e} {:>12.5e} {:>10.4} {:>10.4} {:>10.4} {:>9.2e} {:>8}",
-                        frame,
-                        s.time,
-                        s.total_energy(),
-                        s.kinetic_energy,
-                        s.strain(SpringClass::Structural),
-                        s.strain(SpringClass::Shear),
-                        s.strain(SpringClass::Bend),
-                        s.max_penetration,
-                        s.contacts
-                    );
-                }
-            }
-            Err(e @ ClothError::Unstable { .. }) => {
-                eprintln!("error: {e}");
-                return ExitCode::from(3);
-            }
-            Err(e) => {
-                eprintln!("error: {e}");
-                return ExitCode::FAILURE;
-            }
-        }
-    }
-    let n = sim.particles().len() as f64;
-    let substeps = f64::from(cfg.substeps) * frames as f64;
-    println!(
-        "done: {} frames in {:.3} s wall ({:.3} s stepping), {:.2} ms/frame, {:.3e} particle-substeps/s",
-        frames,
-        start.elapsed().as_secs_f64(),
-        stepping,
-        1e3 * stepping / frames as f64,
-        n * substeps / stepping
-    );
-    ExitCode::SUCCESS
 }

@@ -31,7 +31,11 @@ pub enum ClothError {
         len: usize,
     },
     /// A scene file (or a `--set` override) is not valid.
-    #[error("{file}{}: `{key}`: {message}", if *.line > 0 { format!(":{}:{}", .line, .column) } else { String::new() })]
+    #[error(
+        "{file}{}: {}{message}",
+        if *.line > 0 { format!(":{}:{}", .line, .column) } else { String::new() },
+        if .key.is_empty() { String::new() } else { format!("`{}`: ", .key) }
+    )]
     Scene {
         /// The file (or `--set key=value` override) the problem is in.
         file: String,

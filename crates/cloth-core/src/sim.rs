@@ -61,7 +61,120 @@ pub struct Simulation {
     rest_position: Vec<Vec3>,
 }
 
+/// Everything that changes while a simulation runs: enough to continue it later to the same
+/// bits (a checkpoint). The scene (cloth, parameters, colliders' shapes and motions) is not
+/// included: restore a state into a simulation built from the same scene.
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "scene", derive(serde::Serialize, serde::Deserialize))]
+pub struct SimState {
+    /// Simulated time, s.
+    pub time: f64,
+    /// Steps completed.
+    pub steps: u64,
+    /// Positions, m.
+    pub position: Vec<[f32; 3]>,
+    /// Velocities, m/s.
+    pub velocity: Vec<[f32; 3]>,
+    /// Inverse masses (0 = pinned), 1/kg.
+    pub inv_mass: Vec<f32>,
+    /// Each collider's moving anchor (a sphere's centre, a plane's point), m.
+    pub collider_anchors: Vec<[f32; 3]>,
+}
+
 impl Simulation {
+    /// The state needed to continue this simulation later to the same bits.
+    #[must_use]
+    pub fn state(&self) -> SimState {
+        SimState {
+            time: self.time,
+            steps: self.steps,
+            position: self
+                .particles
+                .position
+                .iter()
+                .map(|p| p.to_array())
+                .collect(),
+            velocity: self
+                .particles
+                .velocity
+                .iter()
+                .map(|v| v.to_array())
+                .collect(),
+            inv_mass: self.particles.inv_mass.clone(),
+            collider_anchors: self
+                .colliders
+                .iter()
+                .map(|c| match c.shape {
+                    crate::collide::Shape::Sphere { center, .. } => center.to_array(),
+                    crate::collide::Shape::Plane { point, .. } => point.to_array(),
+                })
+                .collect(),
+        }
+    }
+
+    /// Restores a state saved by [`state`](Self::state) from a simulation of the same scene.
+    ///
+    /// # Errors
+    /// [`ClothError::InvalidArgument`] when the state does not fit this simulation (other
+    /// particle or collider count) or holds non-finite values; nothing changes then.
+    pub fn restore(&mut self, state: &SimState) -> Result<()> {
+        let n = self.particles.len();
+        for (name, len) in [
+            ("state.position", state.position.len()),
+            ("state.velocity", state.velocity.len()),
+            ("state.inv_mass", state.inv_mass.len()),
+        ] {
+            if len != n {
+                return Err(ClothError::invalid(
+                    name,
+                    len,
+                    format!("{n} entries (the cloth's particles)"),
+                ));
+            }
+        }
+        if state.collider_anchors.len() != self.colliders.len() {
+            return Err(ClothError::invalid(
+                "state.collider_anchors",
+                state.collider_anchors.len(),
+                format!("{} entries (the scene's colliders)", self.colliders.len()),
+            ));
+        }
+        let finite = state
+            .position
+            .iter()
+            .chain(&state.velocity)
+            .chain(&state.collider_anchors)
+            .flatten()
+            .all(|x| x.is_finite())
+            && state.inv_mass.iter().all(|w| w.is_finite() && *w >= 0.0)
+            && state.time.is_finite();
+        if !finite {
+            return Err(ClothError::invalid(
+                "state",
+                "non-finite values",
+                "finite positions, velocities and masses",
+            ));
+        }
+        self.time = state.time;
+        self.steps = state.steps;
+        for (dst, src) in self.particles.position.iter_mut().zip(&state.position) {
+            *dst = Vec3::from(*src);
+        }
+        for (dst, src) in self.particles.velocity.iter_mut().zip(&state.velocity) {
+            *dst = Vec3::from(*src);
+        }
+        self.particles.inv_mass.clone_from(&state.inv_mass);
+        for (c, a) in self.colliders.iter_mut().zip(&state.collider_anchors) {
+            match &mut c.shape {
+                crate::collide::Shape::Sphere { center, .. } => *center = Vec3::from(*a),
+                crate::collide::Shape::Plane { point, .. } => *point = Vec3::from(*a),
+            }
+        }
+        self.pin_target.fill(None);
+        self.refresh_stats();
+        Ok(())
+    }
+
     /// A simulation of `cloth` with `config` (validated) and no colliders.
     pub fn new(cloth: Cloth, config: SimConfig) -> Result<Self> {
         config.validate()?;

@@ -132,6 +132,24 @@ impl Topology {
             .sum()
     }
 
+    /// Area-weighted vertex normals of the surface at `position`, unit length (zero for a
+    /// particle whose triangles are all degenerate), into `out` (resized).
+    pub fn vertex_normals(&self, position: &[glam::Vec3], out: &mut Vec<glam::Vec3>) {
+        out.clear();
+        out.resize(position.len(), glam::Vec3::ZERO);
+        for &[a, b, c] in &self.triangles {
+            let (a, b, c) = (a as usize, b as usize, c as usize);
+            // The cross product's length is twice the area: area weighting for free.
+            let n = (position[b] - position[a]).cross(position[c] - position[a]);
+            out[a] += n;
+            out[b] += n;
+            out[c] += n;
+        }
+        for n in out.iter_mut() {
+            *n = n.normalize_or_zero();
+        }
+    }
+
     /// Triangles of the surface, two per grid cell, counter-clockwise around the cloth's
     /// front normal.
     #[must_use]

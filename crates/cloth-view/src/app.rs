@@ -658,7 +658,11 @@ impl App {
 }
 
 /// Reads back `texture` (the surface's format: RGBA or BGRA, 8 bits) and writes it as a PNG.
-fn save_screenshot(gpu: &Gpu, texture: &wgpu::Texture, path: &std::path::Path) -> anyhow::Result<()> {
+fn save_screenshot(
+    gpu: &Gpu,
+    texture: &wgpu::Texture,
+    path: &std::path::Path,
+) -> anyhow::Result<()> {
     let size = [texture.width(), texture.height()];
     let readback = crate::offscreen::readback_buffer(&gpu.device, size);
     let mut pixels = crate::offscreen::read_texture(

@@ -1,0 +1,652 @@
+//! `cloth sim`, `cloth scenes` and `cloth check`: scenes run headless, listed and validated.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::{Args, ValueEnum};
+use cloth_core::diagnostics::explicit_stability_limit;
+use cloth_core::scene::{self, BUILTIN, Scene};
+use cloth_core::{ClothError, SimState, SpringClass, StepStats};
+use serde::{Deserialize, Serialize};
+
+use crate::export::{GlbFrames, grid_uvs, obj, write_atomic};
+
+/// Exit status for bad input (arguments, scene files).
+pub const EXIT_BAD_INPUT: u8 = 2;
+/// Exit status of a run that became unstable.
+pub const EXIT_UNSTABLE: u8 = 3;
+/// Exit status of a run interrupted by Ctrl-C.
+pub const EXIT_INTERRUPTED: u8 = 130;
+
+/// Mesh formats of `--format`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Format {
+    /// An OBJ file per exported frame, `frame_0001.obj`, …
+    Obj,
+    /// One animated glTF binary, `cloth.glb`.
+    Glb,
+}
+
+/// Arguments of `cloth sim`.
+#[derive(Debug, Args)]
+pub struct SimArgs {
+    /// A built-in scene (see `cloth scenes`) or a TOML scene file.
+    #[arg(value_name = "SCENE", default_value = "drape")]
+    pub scene: String,
+    /// Frames to run (steps of the scene's dt). Default: the scene's duration.
+    #[arg(long, value_name = "N", conflicts_with = "seconds", value_parser = parse_positive_u64)]
+    pub frames: Option<u64>,
+    /// Simulated seconds to run, instead of --frames.
+    #[arg(long, value_name = "S", value_parser = parse_seconds)]
+    pub seconds: Option<f64>,
+    /// Folder for mesh frames (created if missing; checked before simulating).
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Mesh formats to write into --out: obj, glb, or both (`obj,glb`).
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        default_value = "obj",
+        requires = "out"
+    )]
+    pub format: Vec<Format>,
+    /// Export every K-th frame.
+    #[arg(long, value_name = "K", default_value = "1", value_parser = parse_positive_u64)]
+    pub every: u64,
+    /// Write a JSON run report to FILE.
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
+    /// Worker threads, 1 ..= 256. Results are bit-identical for every count (the step is
+    /// currently single-threaded; this is recorded in the report).
+    #[arg(long, value_name = "N", default_value = "1", value_parser = parse_threads)]
+    pub threads: usize,
+    /// Override a scene key, in TOML syntax: --set cloth.resolution=[64,64]
+    /// --set solver.kind="xpbd" (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    /// Shorthand for --set cloth.resolution=[N,N].
+    #[arg(long, value_name = "N", value_parser = parse_resolution)]
+    pub resolution: Option<u32>,
+    /// Shorthand for --set solver.kind="NAME".
+    #[arg(long, value_name = "NAME", value_parser = parse_integrator)]
+    pub integrator: Option<String>,
+    /// Save a checkpoint every N frames (into --out, or the current folder), atomically.
+    #[arg(long, value_name = "N", value_parser = parse_positive_u64)]
+    pub checkpoint_every: Option<u64>,
+    /// Continue a run from a checkpoint file to the same result it would have had.
+    #[arg(long, value_name = "CHECKPOINT")]
+    pub resume: Option<PathBuf>,
+    /// Run even if the memory estimate exceeds the memory available.
+    #[arg(long)]
+    pub force: bool,
+    /// Print the diagnostics table every N frames (0: only the summary).
+    #[arg(long, value_name = "N", default_value = "10")]
+    pub table_every: u64,
+}
+
+/// Arguments of `cloth scenes`.
+#[derive(Debug, Args)]
+pub struct ScenesArgs {
+    /// Print the TOML of this built-in scene, to start a scene file from.
+    #[arg(long, value_name = "NAME")]
+    pub print: Option<String>,
+}
+
+/// Arguments of `cloth check`.
+#[derive(Debug, Args)]
+pub struct CheckArgs {
+    /// A built-in scene or a TOML scene file.
+    #[arg(value_name = "SCENE")]
+    pub scene: String,
+    /// Overrides, as for `cloth sim`.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+}
+
+fn parse_positive_u64(s: &str) -> Result<u64, String> {
+    s.parse()
+        .ok()
+        .filter(|&f| f >= 1)
+        .ok_or_else(|| "allowed an integer >= 1".into())
+}
+
+fn parse_seconds(s: &str) -> Result<f64, String> {
+    s.parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite() && *v > 0.0 && *v <= 1e6)
+        .ok_or_else(|| "allowed a number of seconds in (0, 1e6]".into())
+}
+
+fn parse_threads(s: &str) -> Result<usize, String> {
+    s.parse()
+        .ok()
+        .filter(|t| (1..=256).contains(t))
+        .ok_or_else(|| "allowed an integer in 1 ..= 256".into())
+}
+
+fn parse_resolution(s: &str) -> Result<u32, String> {
+    s.parse()
+        .ok()
+        .filter(|r| (2..=8192).contains(r))
+        .ok_or_else(|| "allowed an integer in 2 ..= 8192".into())
+}
+
+fn parse_integrator(s: &str) -> Result<String, String> {
+    match cloth_core::Integrator::from_name(s) {
+        Some(i) => Ok(i.name().into()),
+        None => {
+            let names: Vec<_> = cloth_core::Integrator::ALL
+                .iter()
+                .map(|i| i.name())
+                .collect();
+            Err(format!("allowed {}", names.join(", ")))
+        }
+    }
+}
+
+/// `cloth scenes`.
+pub fn scenes(args: &ScenesArgs) -> ExitCode {
+    match &args.print {
+        Some(name) => match scene::builtin_source(name) {
+            Some(src) => {
+                print!("{src}");
+                ExitCode::SUCCESS
+            }
+            None => {
+                let names: Vec<&str> = BUILTIN.iter().map(|(n, _)| *n).collect();
+                eprintln!(
+                    "error: unknown scene `{name}`: allowed {}",
+                    names.join(", ")
+                );
+                ExitCode::from(EXIT_BAD_INPUT)
+            }
+        },
+        None => {
+            for (name, _) in BUILTIN {
+                let s = scene::builtin(name).expect("built-in scenes are valid");
+                println!("{name:<16} {}", s.description);
+            }
+            ExitCode::SUCCESS
+        }
+    }
+}
+
+/// Bytes of memory available, from /proc/meminfo (Linux); `None` elsewhere.
+fn available_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+fn summary(scene: &Scene) -> String {
+    let (particles, springs) = scene.counts();
+    let mem = scene::memory_estimate(particles, springs);
+    format!(
+        "scene {} {}x{} particles={} springs={} integrator={} memory≈{:.1} MiB",
+        scene.name,
+        scene.cloth.resolution[0],
+        scene.cloth.resolution[1],
+        particles,
+        springs,
+        scene.integrator().name(),
+        mem as f64 / (1024.0 * 1024.0)
+    )
+}
+
+/// `cloth check`.
+pub fn check(args: &CheckArgs) -> ExitCode {
+    let scene = match scene::load(&args.scene, &args.set) {
+        Ok((s, _)) => s,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
+    let sim = match scene.build() {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: {}: {e}", args.scene);
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+    };
+    let cfg = sim.config();
+    let min_mass = sim
+        .particles()
+        .mass
+        .iter()
+        .copied()
+        .fold(f32::INFINITY, f32::min);
+    let limit = explicit_stability_limit(cfg, min_mass);
+    println!("{}", summary(&scene));
+    println!(
+        "dt={} s substeps={} (substep {:.3e} s); estimated stable substep for the explicit integrators: {:.3e} s ({} substeps per step)",
+        cfg.dt,
+        cfg.substeps,
+        cfg.substep_dt(),
+        limit,
+        (cfg.dt / limit).ceil()
+    );
+    println!(
+        "colliders={} duration={} s: ok",
+        sim.colliders().len(),
+        scene.duration
+    );
+    ExitCode::SUCCESS
+}
+
+/// One frame of the report.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct FrameRecord {
+    frame: u64,
+    time: f64,
+    kinetic_energy: f64,
+    potential_energy: f64,
+    spring_energy: f64,
+    max_strain: Strain,
+    max_penetration: f32,
+    contacts: u32,
+    solver_iterations: u32,
+    solver_residual: f32,
+    solver_converged: bool,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct Strain {
+    structural: f32,
+    shear: f32,
+    bend: f32,
+}
+
+impl FrameRecord {
+    fn new(frame: u64, s: &StepStats) -> Self {
+        Self {
+            frame,
+            time: s.time,
+            kinetic_energy: s.kinetic_energy,
+            potential_energy: s.gravitational_energy,
+            spring_energy: s.spring_energy,
+            max_strain: Strain {
+                structural: s.strain(SpringClass::Structural),
+                shear: s.strain(SpringClass::Shear),
+                bend: s.strain(SpringClass::Bend),
+            },
+            max_penetration: s.max_penetration,
+            contacts: s.contacts,
+            solver_iterations: s.solver.iterations,
+            solver_residual: s.solver.residual,
+            solver_converged: s.solver.converged,
+        }
+    }
+}
+
+/// A checkpoint: the resolved scene, the state and what the run has produced so far.
+#[derive(Debug, Serialize, Deserialize)]
+struct Checkpoint {
+    format: String,
+    scene_toml: String,
+    frames_done: u64,
+    sim_wall_seconds: f64,
+    state: SimState,
+    records: Vec<FrameRecord>,
+    glb: GlbFrames,
+}
+
+const CHECKPOINT_FORMAT: &str = "cloth-checkpoint-1";
+
+/// How a run ended.
+enum Status {
+    Ok,
+    Unstable { step: u64, reason: String },
+    Interrupted,
+}
+
+/// `cloth sim`.
+pub fn sim(args: &SimArgs) -> ExitCode {
+    match run(args) {
+        Ok(code) => code,
+        Err(e) => {
+            let bad_input = e.downcast_ref::<BadInput>().is_some();
+            eprintln!("error: {e:#}");
+            ExitCode::from(if bad_input { EXIT_BAD_INPUT } else { 1 })
+        }
+    }
+}
+
+/// An error in what the user gave (exit status 2).
+#[derive(Debug)]
+struct BadInput(String);
+
+impl std::fmt::Display for BadInput {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for BadInput {}
+
+fn bad(msg: impl Into<String>) -> anyhow::Error {
+    anyhow::Error::new(BadInput(msg.into()))
+}
+
+fn check_writable_dir(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| {
+        bad(format!(
+            "the output folder {} cannot be created: {e}",
+            dir.display()
+        ))
+    })?;
+    let probe = dir.join(".cloth-write-test");
+    std::fs::write(&probe, b"ok").map_err(|e| {
+        bad(format!(
+            "the output folder {} is not writable: {e}",
+            dir.display()
+        ))
+    })?;
+    let _ = std::fs::remove_file(probe);
+    Ok(())
+}
+
+fn check_writable_file(path: &Path, what: &str) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(bad(format!(
+            "the {what} folder {} does not exist",
+            dir.display()
+        )));
+    }
+    let probe = dir.join(".cloth-write-test");
+    std::fs::write(&probe, b"ok").map_err(|e| {
+        bad(format!(
+            "the {what} {} cannot be written: {e}",
+            path.display()
+        ))
+    })?;
+    let _ = std::fs::remove_file(probe);
+    Ok(())
+}
+
+fn run(args: &SimArgs) -> Result<ExitCode> {
+    // 1. The scene: from a checkpoint, or from the file/built-in with overrides.
+    let mut overrides = args.set.clone();
+    if let Some(n) = args.resolution {
+        overrides.push(format!("cloth.resolution=[{n},{n}]"));
+    }
+    if let Some(name) = &args.integrator {
+        overrides.push(format!("solver.kind=\"{name}\""));
+    }
+    let checkpoint: Option<Checkpoint> = match &args.resume {
+        Some(path) => {
+            let text = std::fs::read_to_string(path).map_err(|e| {
+                bad(format!(
+                    "cannot read the checkpoint {}: {e}",
+                    path.display()
+                ))
+            })?;
+            let cp: Checkpoint = serde_json::from_str(&text)
+                .map_err(|e| bad(format!("{} is not a cloth checkpoint: {e}", path.display())))?;
+            if cp.format != CHECKPOINT_FORMAT {
+                return Err(bad(format!(
+                    "{} is a checkpoint of format {:?}; this cloth reads {CHECKPOINT_FORMAT:?}",
+                    path.display(),
+                    cp.format
+                )));
+            }
+            Some(cp)
+        }
+        None => None,
+    };
+    let scene = match &checkpoint {
+        Some(cp) => {
+            Scene::from_toml(&cp.scene_toml, "checkpoint").map_err(|e| bad(e.to_string()))?
+        }
+        None => {
+            scene::load(&args.scene, &overrides)
+                .map_err(|e| bad(e.to_string()))?
+                .0
+        }
+    };
+    let (particles, springs) = scene.counts();
+    let mem = scene::memory_estimate(particles, springs);
+    if let Some(avail) = available_memory()
+        && mem > avail
+        && !args.force
+    {
+        return Err(bad(format!(
+            "this scene needs about {:.1} GiB ({particles} particles), more than the {:.1} GiB \
+                 available; lower cloth.resolution or pass --force",
+            mem as f64 / f64::from(1u32 << 30),
+            avail as f64 / f64::from(1u32 << 30)
+        )));
+    }
+    // 2. Outputs are checked before simulating.
+    if let Some(dir) = &args.out {
+        check_writable_dir(dir)?;
+    }
+    if let Some(report) = &args.report {
+        check_writable_file(report, "report")?;
+    }
+    let checkpoint_path = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("."))
+        .join("checkpoint.json");
+
+    let mut sim = scene
+        .build()
+        .map_err(|e| bad(format!("{}: {e}", args.scene)))?;
+    let cfg = *sim.config();
+    let frames_total = match (args.frames, args.seconds) {
+        (Some(f), _) => f,
+        (None, Some(s)) => (s / f64::from(cfg.dt)).ceil() as u64,
+        (None, None) => (f64::from(scene.duration) / f64::from(cfg.dt)).ceil() as u64,
+    }
+    .max(1);
+    let (mut records, mut glb, mut frame, mut stepping) =
+        (Vec::new(), GlbFrames::default(), 0u64, 0.0f64);
+    if let Some(cp) = checkpoint {
+        sim.restore(&cp.state)
+            .map_err(|e| bad(format!("checkpoint: {e}")))?;
+        records = cp.records;
+        glb = cp.glb;
+        frame = cp.frames_done;
+        stepping = cp.sim_wall_seconds;
+    }
+    let (rows, cols) = sim.grid_size();
+    let uvs = grid_uvs(rows, cols);
+    let want_obj = args.out.is_some() && args.format.contains(&Format::Obj);
+    let want_glb = args.out.is_some() && args.format.contains(&Format::Glb);
+
+    let interrupted = Arc::new(AtomicBool::new(false));
+    {
+        let flag = interrupted.clone();
+        let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
+    }
+    println!(
+        "{} dt={} s substeps={}",
+        summary(&scene),
+        cfg.dt,
+        cfg.substeps
+    );
+    if args.table_every > 0 {
+        println!(
+            "{:>6} {:>8} {:>12} {:>12} {:>10} {:>10} {:>10} {:>9} {:>8}",
+            "frame",
+            "t [s]",
+            "E_total [J]",
+            "E_kin [J]",
+            "strain_st",
+            "strain_sh",
+            "strain_bd",
+            "pen [m]",
+            "contacts"
+        );
+    }
+    let progress = if std::io::stderr().is_terminal() {
+        let bar = indicatif::ProgressBar::new(frames_total);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} frames  {msg}")
+                .expect("valid template"),
+        );
+        bar.set_position(frame);
+        Some(bar)
+    } else {
+        None
+    };
+
+    let mut normals = Vec::new();
+    let mut status = Status::Ok;
+    let wall_start = Instant::now();
+    while frame < frames_total {
+        if interrupted.load(Ordering::SeqCst) {
+            status = Status::Interrupted;
+            break;
+        }
+        let t0 = Instant::now();
+        let result = sim.step();
+        stepping += t0.elapsed().as_secs_f64();
+        let stats = match result {
+            Ok(s) => s,
+            Err(ClothError::Unstable {
+                step,
+                reason,
+                hint,
+                particle,
+                ..
+            }) => {
+                status = Status::Unstable {
+                    step,
+                    reason: format!("particle {particle}: {reason}; likely cause: {hint}"),
+                };
+                break;
+            }
+            Err(e) => return Err(e.into()),
+        };
+        frame += 1;
+        records.push(FrameRecord::new(frame, &stats));
+        if args.table_every > 0 && (frame % args.table_every == 0 || frame == frames_total) {
+            let line = format!(
+                "{:>6} {:>8.3} {:>12.5e} {:>12.5e} {:>10.4} {:>10.4} {:>10.4} {:>9.2e} {:>8}",
+                frame,
+                stats.time,
+                stats.total_energy(),
+                stats.kinetic_energy,
+                stats.strain(SpringClass::Structural),
+                stats.strain(SpringClass::Shear),
+                stats.strain(SpringClass::Bend),
+                stats.max_penetration,
+                stats.contacts
+            );
+            match &progress {
+                Some(bar) => bar.println(line),
+                None => println!("{line}"),
+            }
+        }
+        if frame % args.every == 0
+            && let Some(dir) = &args.out
+        {
+            let pos = &sim.particles().position;
+            if want_obj {
+                sim.topology().vertex_normals(pos, &mut normals);
+                let text = obj(
+                    pos,
+                    &normals,
+                    &uvs,
+                    sim.topology(),
+                    &format!("cloth frame {frame}, t = {:.6} s", stats.time),
+                );
+                write_atomic(&dir.join(format!("frame_{frame:04}.obj")), text.as_bytes())?;
+            }
+            if want_glb {
+                glb.push(stats.time as f32, pos);
+            }
+        }
+        if let Some(every) = args.checkpoint_every
+            && frame % every == 0
+            && frame < frames_total
+        {
+            let cp = Checkpoint {
+                format: CHECKPOINT_FORMAT.into(),
+                scene_toml: scene.to_toml(),
+                frames_done: frame,
+                sim_wall_seconds: stepping,
+                state: sim.state(),
+                records: records.clone(),
+                glb: glb.clone(),
+            };
+            write_atomic(&checkpoint_path, &serde_json::to_vec(&cp)?)?;
+        }
+        if let Some(bar) = &progress {
+            bar.set_position(frame);
+            let simulated = stats.time;
+            let speed = simulated / wall_start.elapsed().as_secs_f64().max(1e-9);
+            bar.set_message(format!("t = {simulated:.2} s, {speed:.2}× real time"));
+        }
+    }
+    if let Some(bar) = progress {
+        bar.finish_and_clear();
+    }
+    if want_glb && !glb.positions.is_empty() {
+        let bytes = glb.to_glb(sim.topology(), &uvs)?;
+        write_atomic(&args.out.as_ref().expect("out").join("cloth.glb"), &bytes)?;
+    }
+
+    let substeps_done = records.len() as f64 * f64::from(cfg.substeps);
+    let throughput = if stepping > 0.0 {
+        particles as f64 * substeps_done / stepping
+    } else {
+        0.0
+    };
+    let (status_json, code, status_line) = match &status {
+        Status::Ok => (serde_json::json!("ok"), ExitCode::SUCCESS, "ok".to_string()),
+        Status::Unstable { step, reason } => (
+            serde_json::json!({ "unstable": { "step": step, "reason": reason } }),
+            ExitCode::from(EXIT_UNSTABLE),
+            format!("unstable at step {step}: {reason}"),
+        ),
+        Status::Interrupted => (
+            serde_json::json!("interrupted"),
+            ExitCode::from(EXIT_INTERRUPTED),
+            "interrupted".to_string(),
+        ),
+    };
+    if let Some(path) = &args.report {
+        let report = serde_json::json!({
+            "format": "cloth-report-1",
+            "scene": scene.to_toml(),
+            "versions": { "cloth": env!("CARGO_PKG_VERSION") },
+            "threads": args.threads,
+            "particles": particles,
+            "springs": springs,
+            "integrator": cfg.integrator.name(),
+            "dt": cfg.dt,
+            "substeps": cfg.substeps,
+            "frames": records,
+            "sim_wall_seconds": stepping,
+            "particle_substeps_per_second": throughput,
+            "status": status_json,
+        });
+        write_atomic(path, &serde_json::to_vec_pretty(&report)?)
+            .with_context(|| format!("writing the report {}", path.display()))?;
+    }
+    println!(
+        "done: {} frames, status {status_line}, {:.3} s stepping, {:.2} ms/frame, {:.3e} particle-substeps/s",
+        records.len(),
+        stepping,
+        1e3 * stepping / (records.len().max(1)) as f64,
+        throughput
+    );
+    if let Status::Unstable { .. } = status {
+        eprintln!("error: the simulation became unstable: {status_line}");
+    }
+    Ok(code)
+}

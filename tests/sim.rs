@@ -1,0 +1,410 @@
+//! `cloth sim`, `cloth scenes` and `cloth check` end to end: built-in scenes run headless,
+//! exports parse back with independent parsers (tobj, gltf), the report has its documented
+//! fields, a resumed run ends bit-identical to an uninterrupted one, and every kind of bad input
+//! exits with status 2 and one message naming the file, line, column and key.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn cloth(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_cloth"))
+        .args(args)
+        .output()
+        .expect("run cloth");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("cloth-sim-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    dir
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+fn report(path: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(path).expect("report")).expect("report is JSON")
+}
+
+/// Every built-in scene runs headless for 1 s of simulated time with status "ok".
+#[test]
+fn every_builtin_scene_runs_ok() {
+    let (code, list, _) = cloth(&["scenes"]);
+    assert_eq!(code, 0);
+    let names: Vec<&str> = list
+        .lines()
+        .filter_map(|l| l.split_whitespace().next())
+        .collect();
+    assert!(names.len() >= 9, "{list}");
+    for name in ["drape", "hanging", "flag", "peer-ball", "table"] {
+        assert!(names.contains(&name), "{name} missing from {list}");
+    }
+    let dir = tmp("builtin");
+    for name in names {
+        let rep = dir.join(format!("{name}.json"));
+        let (code, out, err) = cloth(&[
+            "sim",
+            name,
+            "--seconds",
+            "1",
+            "--table-every",
+            "0",
+            "--report",
+            s(&rep),
+        ]);
+        assert_eq!(code, 0, "{name}: {out}\n{err}");
+        let r = report(&rep);
+        assert_eq!(r["status"], "ok", "{name}");
+        let (_, toml, _) = cloth(&["scenes", "--print", name]);
+        assert!(toml.contains("[cloth]"), "{name}");
+    }
+}
+
+/// OBJ frames parse with `tobj` and glb with `gltf` (an importer that validates the file):
+/// vertex and face counts match the cloth, normals are unit length, the animation has one
+/// morph target per exported frame.
+#[test]
+fn exports_parse_with_independent_parsers() {
+    let dir = tmp("export");
+    let out = dir.join("out");
+    let (code, _, err) = cloth(&[
+        "sim",
+        "drape",
+        "--frames",
+        "12",
+        "--resolution",
+        "10",
+        "--out",
+        s(&out),
+        "--format",
+        "obj,glb",
+        "--every",
+        "4",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let mut objs: Vec<_> = std::fs::read_dir(&out)
+        .expect("out")
+        .filter_map(|e| e.ok().map(|e| e.file_name().into_string().expect("name")))
+        .filter(|n| n.ends_with(".obj"))
+        .collect();
+    objs.sort();
+    assert_eq!(objs, ["frame_0004.obj", "frame_0008.obj", "frame_0012.obj"]);
+    let (models, _) = tobj::load_obj(
+        out.join("frame_0012.obj"),
+        &tobj::LoadOptions {
+            single_index: false,
+            triangulate: false,
+            ..Default::default()
+        },
+    )
+    .expect("tobj parses it");
+    let mesh = &models[0].mesh;
+    assert_eq!(mesh.positions.len(), 100 * 3);
+    assert_eq!(mesh.normals.len(), 100 * 3);
+    assert_eq!(mesh.texcoords.len(), 100 * 2);
+    assert_eq!(mesh.indices.len(), 2 * 9 * 9 * 3);
+    for n in mesh.normals.chunks(3) {
+        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        assert!((len - 1.0).abs() < 1e-5, "normal length {len}");
+    }
+    assert!(!out.read_dir().expect("out").any(|e| {
+        e.expect("entry")
+            .file_name()
+            .to_string_lossy()
+            .ends_with(".tmp")
+    }));
+
+    let (doc, buffers, _) = gltf::import(out.join("cloth.glb")).expect("gltf imports it");
+    let mesh = doc.meshes().next().expect("a mesh");
+    let prim = mesh.primitives().next().expect("a primitive");
+    let reader = prim.reader(|b| Some(&buffers[b.index()]));
+    assert_eq!(reader.read_positions().expect("positions").count(), 100);
+    assert_eq!(
+        reader.read_indices().expect("indices").into_u32().count(),
+        2 * 9 * 9 * 3
+    );
+    assert_eq!(prim.morph_targets().count(), 3);
+    let anim = doc.animations().next().expect("an animation");
+    assert_eq!(anim.channels().count(), 1);
+    // The last target moves the base mesh to the last OBJ frame (compared as sorted vertex
+    // sets: tobj may renumber vertices).
+    let base: Vec<[f32; 3]> = reader.read_positions().expect("positions").collect();
+    let last = reader
+        .read_morph_targets()
+        .last()
+        .expect("targets")
+        .0
+        .expect("positions");
+    let mut moved: Vec<[f32; 3]> = base
+        .iter()
+        .zip(last)
+        .map(|(b, d)| [b[0] + d[0], b[1] + d[1], b[2] + d[2]])
+        .collect();
+    let mut obj: Vec<[f32; 3]> = models[0]
+        .mesh
+        .positions
+        .chunks(3)
+        .map(|p| [p[0], p[1], p[2]])
+        .collect();
+    let key = |a: &[f32; 3], b: &[f32; 3]| {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| x.total_cmp(y))
+            .find(|o| o.is_ne())
+            .unwrap_or(std::cmp::Ordering::Equal)
+    };
+    moved.sort_by(key);
+    obj.sort_by(key);
+    for (m, o) in moved.iter().zip(&obj) {
+        for k in 0..3 {
+            assert!((m[k] - o[k]).abs() < 1e-5, "{m:?} != {o:?}");
+        }
+    }
+}
+
+/// The report holds its documented fields (docs/scenes.md, "Run report").
+#[test]
+fn report_has_its_documented_fields() {
+    let dir = tmp("report");
+    let rep = dir.join("r.json");
+    let (code, _, err) = cloth(&[
+        "sim",
+        "drape",
+        "--frames",
+        "5",
+        "--resolution",
+        "8",
+        "--integrator",
+        "implicit-euler",
+        "--report",
+        s(&rep),
+        "--threads",
+        "2",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let r = report(&rep);
+    for key in [
+        "scene",
+        "versions",
+        "threads",
+        "particles",
+        "springs",
+        "integrator",
+        "dt",
+        "substeps",
+        "frames",
+        "sim_wall_seconds",
+        "particle_substeps_per_second",
+        "status",
+    ] {
+        assert!(!r[key].is_null(), "missing {key}");
+    }
+    assert_eq!(r["threads"], 2);
+    assert_eq!(r["particles"], 64);
+    assert_eq!(r["integrator"], "implicit-euler");
+    let frames = r["frames"].as_array().expect("frames");
+    assert_eq!(frames.len(), 5);
+    for key in [
+        "frame",
+        "time",
+        "kinetic_energy",
+        "potential_energy",
+        "spring_energy",
+        "max_strain",
+        "max_penetration",
+        "contacts",
+        "solver_iterations",
+        "solver_residual",
+        "solver_converged",
+    ] {
+        assert!(!frames[4][key].is_null(), "missing frames[].{key}");
+    }
+    assert!(frames[4]["solver_iterations"].as_u64().expect("iterations") >= 1);
+    assert!(
+        r["scene"]
+            .as_str()
+            .expect("scene")
+            .contains("kind = \"implicit-euler\"")
+    );
+}
+
+/// A run resumed from a checkpoint ends bit-identical to the same run uninterrupted, and the
+/// thread count does not change a bit either.
+#[test]
+fn resume_and_threads_give_identical_bits() {
+    let dir = tmp("resume");
+    let (a, b, c) = (dir.join("a"), dir.join("b"), dir.join("c"));
+    let base = [
+        "sim",
+        "flag",
+        "--resolution",
+        "10",
+        "--table-every",
+        "0",
+        "--format",
+        "obj",
+        "--every",
+        "30",
+    ];
+    let run = |out: &Path, extra: &[&str]| {
+        let mut args: Vec<&str> = base.to_vec();
+        args.extend_from_slice(&["--out", s(out)]);
+        args.extend_from_slice(extra);
+        let (code, o, e) = cloth(&args);
+        assert_eq!(code, 0, "{o}\n{e}");
+    };
+    run(&a, &["--frames", "60"]);
+    // "Killed" after frame 40 with a checkpoint at frame 20 (runs only write checkpoints before
+    // their last frame), then resumed to 60.
+    run(&b, &["--frames", "40", "--checkpoint-every", "20"]);
+    let cp = b.join("checkpoint.json");
+    assert!(cp.exists());
+    run(&b, &["--frames", "60", "--resume", s(&cp)]);
+    run(&c, &["--frames", "60", "--threads", "2"]);
+    let last = |d: &Path| std::fs::read(d.join("frame_0060.obj")).expect("frame 60");
+    assert_eq!(last(&a), last(&b), "resumed run differs");
+    assert_eq!(last(&a), last(&c), "two threads differ from one");
+}
+
+/// An unstable run stops, exits 3, writes the frames before the failure and a report with
+/// status "unstable" naming the step.
+#[test]
+fn unstable_runs_exit_3_with_report() {
+    let dir = tmp("unstable");
+    let rep = dir.join("r.json");
+    let out = dir.join("out");
+    let (code, _, err) = cloth(&[
+        "sim",
+        "drape",
+        "--resolution",
+        "16",
+        "--frames",
+        "50",
+        "--set",
+        "solver.substeps=1",
+        "--report",
+        s(&rep),
+        "--out",
+        s(&out),
+    ]);
+    assert_eq!(code, 3, "{err}");
+    assert!(err.contains("unstable"), "{err}");
+    let r = report(&rep);
+    let step = r["status"]["unstable"]["step"]
+        .as_u64()
+        .expect("unstable step");
+    assert_eq!(r["frames"].as_array().expect("frames").len() as u64, step);
+    if step > 0 {
+        assert!(out.join(format!("frame_{step:04}.obj")).exists());
+    }
+}
+
+fn bad(args: &[&str], needles: &[&str]) {
+    let (code, out, err) = cloth(args);
+    assert_eq!(code, 2, "{args:?}: {out}{err}");
+    assert!(!err.contains("panicked"), "{args:?}: {err}");
+    assert_eq!(
+        err.trim().lines().count(),
+        1,
+        "{args:?}: one message expected: {err}"
+    );
+    for n in needles {
+        assert!(err.contains(n), "{args:?}: `{n}` not in {err}");
+    }
+}
+
+/// Bad input of every kind: exit status 2, one message naming file:line:column, the key and
+/// what is allowed; never a panic.
+#[test]
+fn bad_input_is_named_precisely() {
+    let dir = tmp("bad");
+    let write = |name: &str, text: &[u8]| {
+        let p = dir.join(name);
+        std::fs::write(&p, text).expect("write");
+        p
+    };
+    let good = "[cloth]\nresolution = [8, 8]\nsize = [1.0, 1.0]\n";
+    let syntax = write("syntax.toml", b"[cloth]\nresolution = [8, 8\n");
+    bad(&["sim", s(&syntax)], &["syntax.toml:2:", "unclosed array"]);
+    let unknown = write("unknown.toml", good.replace("size", "sizee").as_bytes());
+    bad(
+        &["sim", s(&unknown)],
+        &["unknown.toml:3:1", "did you mean `size`?"],
+    );
+    let wrong_type = write("type.toml", good.replace("[8, 8]", "\"big\"").as_bytes());
+    bad(&["sim", s(&wrong_type)], &["type.toml:2:"]);
+    let range = write("range.toml", format!("{good}density = -1.0\n").as_bytes());
+    bad(
+        &["sim", s(&range)],
+        &["range.toml:4:11", "cloth.density", "> 0"],
+    );
+    let nan = write("nan.toml", format!("{good}[solver]\ndt = nan\n").as_bytes());
+    bad(&["sim", s(&nan)], &["nan.toml:5:6", "solver.dt"]);
+    let friction = write("friction.toml", format!("{good}[[colliders]]\ntype = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 1.0, 0.0]\nfriction = {{ static = -0.5 }}\n").as_bytes());
+    bad(
+        &["sim", s(&friction)],
+        &["friction.toml:8:", "colliders[0].friction.static", ">= 0"],
+    );
+    let pins = write(
+        "pins.toml",
+        format!("{good}pins = {{ indices = [3, 99] }}\n").as_bytes(),
+    );
+    bad(
+        &["sim", s(&pins)],
+        &["pins.toml:4:", "cloth.pins.indices", "0 ..= 63"],
+    );
+    let zero = write("zero.toml", good.replace("[8, 8]", "[0, 8]").as_bytes());
+    bad(
+        &["sim", s(&zero)],
+        &["zero.toml:2:", "cloth.resolution", "2 ..= 8192"],
+    );
+    let empty = write("empty.toml", b"");
+    bad(&["sim", s(&empty)], &["empty.toml", "empty"]);
+    let binary = write("binary.toml", &[0x7f, b'E', b'L', b'F', 0, 1, 2, 0xff]);
+    bad(&["sim", s(&binary)], &["binary.toml", "binary"]);
+    bad(
+        &["sim", s(&dir.join("missing.toml"))],
+        &["missing.toml", "cannot read"],
+    );
+    bad(
+        &["sim", "drape", "--set", "cloth.resolution=[8192,8192]"],
+        &["GiB", "--force"],
+    );
+    let file_as_dir = write("not-a-dir", b"x");
+    bad(
+        &[
+            "sim",
+            "drape",
+            "--frames",
+            "1",
+            "--out",
+            s(&file_as_dir.join("sub")),
+        ],
+        &["output folder"],
+    );
+    bad(
+        &["sim", "drape", "--set", "solver.kind=\"rk4\""],
+        &["--set", "solver.kind", "xpbd"],
+    );
+    bad(&["check", s(&range)], &["cloth.density"]);
+    bad(
+        &["scenes", "--print", "nope"],
+        &["unknown scene `nope`", "drape"],
+    );
+}
+
+#[test]
+fn check_summarises_without_running() {
+    let (code, out, err) = cloth(&["check", "peer-ball"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("particles=16384"), "{out}");
+    assert!(out.contains("memory"), "{out}");
+    assert!(out.contains("estimated stable substep"), "{out}");
+}
