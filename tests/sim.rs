@@ -408,3 +408,37 @@ fn check_summarises_without_running() {
     assert!(out.contains("memory"), "{out}");
     assert!(out.contains("estimated stable substep"), "{out}");
 }
+
+/// Ctrl-C (SIGINT) stops a run between frames: exit status 130 and a report with status
+/// "interrupted" holding the frames done so far.
+#[cfg(unix)]
+#[test]
+fn interrupted_runs_write_their_report() {
+    let dir = tmp("interrupt");
+    let rep = dir.join("r.json");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cloth"))
+        .args([
+            "sim",
+            "peer-ball",
+            "--frames",
+            "100000",
+            "--table-every",
+            "0",
+            "--report",
+            s(&rep),
+        ])
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .expect("spawn");
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let killed = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("kill");
+    assert!(killed.success());
+    let status = child.wait().expect("wait");
+    assert_eq!(status.code(), Some(130));
+    let r = report(&rep);
+    assert_eq!(r["status"], "interrupted");
+    assert!(!r["frames"].as_array().expect("frames").is_empty());
+}
