@@ -217,12 +217,7 @@ pub fn check(args: &CheckArgs) -> ExitCode {
         }
     };
     let cfg = sim.config();
-    let min_mass = sim
-        .particles()
-        .mass
-        .iter()
-        .copied()
-        .fold(f32::INFINITY, f32::min);
+    let min_mass = sim.particles().min_mass();
     let limit = explicit_stability_limit(cfg, min_mass);
     println!("{}", summary(&scene));
     println!(

@@ -39,6 +39,13 @@ impl Particles {
         self.inv_mass[i] == 0.0
     }
 
+    /// The smallest particle mass, kg (infinite for no particles). The stiffest, lightest
+    /// particle bounds the stable step of the explicit integrators.
+    #[must_use]
+    pub fn min_mass(&self) -> f32 {
+        self.mass.iter().copied().fold(f32::INFINITY, f32::min)
+    }
+
     /// Total mass of all particles (pinned ones included), kg.
     #[must_use]
     pub fn total_mass(&self) -> f32 {

@@ -1035,12 +1035,7 @@ impl Scene {
         }
         grid = grid.pin_indices(c.pins.indices.iter().copied());
         let cloth = grid.build()?;
-        let min_mass = cloth
-            .particles
-            .mass
-            .iter()
-            .copied()
-            .fold(f32::INFINITY, f32::min);
+        let min_mass = cloth.particles.min_mass();
         let mut sim = Simulation::new(cloth, self.config(min_mass))?;
         for col in &self.colliders {
             let shape = match col.kind {

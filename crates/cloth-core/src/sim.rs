@@ -56,7 +56,6 @@ pub struct Simulation {
     time: f64,
     steps: u64,
     stats: StepStats,
-    min_mass: f32,
     /// Positions of the cloth as built (its rest shape), for tethers.
     rest_position: Vec<Vec3>,
 }
@@ -179,12 +178,6 @@ impl Simulation {
     pub fn new(cloth: Cloth, config: SimConfig) -> Result<Self> {
         config.validate()?;
         let n = cloth.particles.len();
-        let min_mass = cloth
-            .particles
-            .mass
-            .iter()
-            .copied()
-            .fold(f32::INFINITY, f32::min);
         let mut sim = Self {
             particles: cloth.particles,
             topology: cloth.topology,
@@ -200,7 +193,6 @@ impl Simulation {
             time: 0.0,
             steps: 0,
             stats: StepStats::default(),
-            min_mass,
             rest_position: Vec::new(),
         };
         sim.rest_position.clone_from(&sim.particles.position);
@@ -405,15 +397,7 @@ impl Simulation {
     }
 
     fn refresh_stats(&mut self) {
-        let (mut stats, _) = measure(
-            &self.config,
-            &self.topology,
-            &self.particles,
-            &self.colliders,
-        );
-        stats.step = self.steps;
-        stats.time = self.time;
-        self.stats = stats;
+        self.stats = self.measure();
     }
 
     /// Advances one step of [`SimConfig::dt`] seconds (see the type's docs for the stages).
@@ -492,7 +476,7 @@ impl Simulation {
                 time: self.time,
                 particle: bad.particle,
                 reason: bad.reason,
-                hint: instability_hint(&self.config, self.min_mass),
+                hint: instability_hint(&self.config, self.particles.min_mass()),
             });
         }
         self.pin_target.fill(None);

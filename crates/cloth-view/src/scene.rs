@@ -126,12 +126,7 @@ pub fn flag(n: usize, integrator: Integrator) -> cloth_core::Result<Simulation> 
     };
     config.air.wind = Vec3::new(4.0, 0.0, 1.0);
     config.air.gust = Some(Gust::default());
-    let min_mass = cloth
-        .particles
-        .mass
-        .iter()
-        .copied()
-        .fold(f32::INFINITY, f32::min);
+    let min_mass = cloth.particles.min_mass();
     config.substeps = presets::stable_substeps(&config, min_mass);
     Simulation::new(cloth, config)
 }
