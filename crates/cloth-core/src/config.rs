@@ -362,6 +362,9 @@ pub struct SimConfig {
     pub implicit: ImplicitSettings,
     /// XPBD settings.
     pub xpbd: XpbdSettings,
+    /// Cloth–cloth contact (particles keep a thickness from each other). `None` (the
+    /// default) is off.
+    pub self_collision: Option<crate::collide::self_collision::SelfCollision>,
 }
 
 impl Default for SimConfig {
@@ -379,6 +382,7 @@ impl Default for SimConfig {
             strain_limit: None,
             implicit: ImplicitSettings::default(),
             xpbd: XpbdSettings::default(),
+            self_collision: None,
         }
     }
 }
@@ -437,6 +441,10 @@ impl SimConfig {
             ));
         }
         check::non_negative("config.xpbd.tether_slack", self.xpbd.tether_slack)?;
+        if let Some(sc) = self.self_collision {
+            check::positive("config.self_collision.thickness", sc.thickness)?;
+            check::non_negative("config.self_collision.friction", sc.friction)?;
+        }
         Ok(())
     }
 

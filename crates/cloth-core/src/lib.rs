@@ -55,6 +55,7 @@ mod sim;
 mod solver;
 pub mod topology;
 
+pub use collide::self_collision::SelfCollision;
 pub use collide::{Collider, Friction, Shape};
 pub use config::{
     Air, ForceSwitches, Gust, ImplicitSettings, Integrator, Material, SimConfig, SpringParams,

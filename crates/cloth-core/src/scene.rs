@@ -457,6 +457,28 @@ pub struct SolverDesc {
     /// `{ max_stretch_ratio, max_speed }`.
     #[serde(default)]
     pub limits: LimitsDesc,
+    /// Cloth–cloth contact `{ thickness, friction }`; off when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub self_collision: Option<SelfCollisionDesc>,
+}
+
+/// `[solver.self_collision]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SelfCollisionDesc {
+    /// Distance particles keep from each other, m, `> 0`. Default 0.01.
+    #[serde(default = "d_sc_thickness")]
+    pub thickness: f32,
+    /// Friction between layers, `>= 0`. Default 0.3.
+    #[serde(default = "d_sc_friction")]
+    pub friction: f32,
+}
+
+fn d_sc_thickness() -> f32 {
+    crate::SelfCollision::default().thickness
+}
+fn d_sc_friction() -> f32 {
+    crate::SelfCollision::default().friction
 }
 
 fn d_kind() -> String {
@@ -476,6 +498,7 @@ impl Default for SolverDesc {
             implicit: ImplicitDesc::default(),
             xpbd: XpbdDesc::default(),
             limits: LimitsDesc::default(),
+            self_collision: None,
         }
     }
 }
@@ -917,6 +940,10 @@ impl Scene {
             ));
         }
         positive("solver.limits.max_speed", s.limits.max_speed)?;
+        if let Some(sc) = s.self_collision {
+            positive("solver.self_collision.thickness", sc.thickness)?;
+            non_negative("solver.self_collision.friction", sc.friction)?;
+        }
         if let Some(cam) = &self.camera {
             finite3("camera.eye", cam.eye)?;
             finite3("camera.target", cam.target)?;
@@ -977,6 +1004,10 @@ impl Scene {
                 max_iterations: s.implicit.max_iterations,
             },
             xpbd: XpbdSettings::default(),
+            self_collision: s.self_collision.map(|c| crate::SelfCollision {
+                thickness: c.thickness,
+                friction: c.friction,
+            }),
         };
         match s.substeps {
             SubstepsDesc::Count(n) => config.substeps = n,

@@ -1,5 +1,7 @@
 //! Colliders and the contact response shared by the explicit integrators.
 
+pub mod self_collision;
+
 use glam::Vec3;
 
 use crate::error::{ClothError, Result, check};

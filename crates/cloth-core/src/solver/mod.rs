@@ -76,6 +76,8 @@ pub(crate) struct Solver {
     xpbd: xpbd::XpbdScratch,
     /// Solver figures accumulated over the current step.
     stats: SolverStats,
+    /// Spatial hash of the self-collision pass.
+    hash: crate::collide::self_collision::SpatialHash,
 }
 
 impl Solver {
@@ -110,12 +112,21 @@ impl Solver {
             }
             Integrator::Xpbd => {
                 self.stats.iterations = ctx.config.xpbd.iterations;
-                xpbd::substep(ctx, &mut self.xpbd);
+                xpbd::substep(ctx, &mut self.xpbd, &mut self.hash);
                 return;
             }
         }
         if let Some(limit) = ctx.config.strain_limit {
             limit_strain(ctx.topology, ctx.particles, limit, ctx.h);
+        }
+        if let Some(settings) = ctx.config.self_collision {
+            crate::collide::self_collision::resolve(
+                &mut self.hash,
+                ctx.particles,
+                ctx.rest,
+                settings,
+                true,
+            );
         }
     }
 

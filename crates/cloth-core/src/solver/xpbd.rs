@@ -84,7 +84,11 @@ impl XpbdScratch {
 }
 
 /// One XPBD substep.
-pub(super) fn substep(ctx: &mut SubstepCtx<'_>, sc: &mut XpbdScratch) {
+pub(super) fn substep(
+    ctx: &mut SubstepCtx<'_>,
+    sc: &mut XpbdScratch,
+    hash: &mut crate::collide::self_collision::SpatialHash,
+) {
     let n = ctx.particles.len();
     let h = ctx.h;
     let cfg = ctx.config;
@@ -130,6 +134,9 @@ pub(super) fn substep(ctx: &mut SubstepCtx<'_>, sc: &mut XpbdScratch) {
         solve_springs(ctx, sc, h);
         if settings.tethers {
             solve_tethers(&mut *ctx.particles, &sc.tethers);
+        }
+        if let Some(settings) = cfg.self_collision {
+            crate::collide::self_collision::resolve(hash, ctx.particles, ctx.rest, settings, false);
         }
         contacts = solve_contacts(ctx, &sc.prev, h);
     }
