@@ -1377,3 +1377,88 @@ pub fn load(name_or_path: &str, overrides: &[String]) -> Result<(Scene, String)>
     let scene = Scene::from_toml_with_overrides(&source, &file, overrides)?;
     Ok((scene, source))
 }
+
+impl Scene {
+    /// This scene with the settings of a running simulation built from it: integrator, step,
+    /// substeps, solver settings, material, forces, colliders' thickness, friction and motion
+    /// (at their initial positions), and the pinned particles. Building the result and running
+    /// it gives the same simulation as restarting `sim` with its current settings. This is what
+    /// the viewer's "save scene" writes.
+    #[must_use]
+    pub fn with_settings_of(&self, sim: &Simulation) -> Scene {
+        let mut scene = self.clone();
+        let c = sim.config();
+        let sp = |p: SpringParams| SpringDesc {
+            stiffness: p.stiffness,
+            damping: p.damping,
+        };
+        scene.material = MaterialDesc {
+            warp: sp(c.material.warp),
+            weft: sp(c.material.weft),
+            shear: sp(c.material.shear),
+            bend: sp(c.material.bend),
+        };
+        scene.forces = ForcesDesc {
+            gravity: c.gravity.to_array(),
+            damping: c.damping,
+            air: AirDesc {
+                density: c.air.density,
+                drag: c.air.drag_coefficient,
+                lift: c.air.lift_coefficient,
+                wind: c.air.wind.to_array(),
+                gust: c.air.gust.map(|g| GustDesc {
+                    amplitude: g.amplitude,
+                    frequency: g.frequency,
+                }),
+            },
+            enabled: EnabledDesc {
+                gravity: c.forces.gravity,
+                springs: c.forces.springs,
+                dashpots: c.forces.dashpots,
+                damping: c.forces.damping,
+                air: c.forces.air,
+            },
+        };
+        scene.solver = SolverDesc {
+            kind: c.integrator.name().into(),
+            dt: c.dt,
+            substeps: SubstepsDesc::Count(c.substeps),
+            strain_limit: c.strain_limit,
+            implicit: ImplicitDesc {
+                tolerance: c.implicit.tolerance,
+                max_iterations: c.implicit.max_iterations,
+            },
+            xpbd: XpbdDesc {
+                iterations: c.xpbd.iterations,
+                tethers: c.xpbd.tethers,
+                tether_slack: c.xpbd.tether_slack,
+            },
+            limits: LimitsDesc {
+                max_stretch_ratio: c.limits.max_stretch_ratio,
+                max_speed: c.limits.max_speed,
+            },
+            self_collision: c.self_collision.map(|s| SelfCollisionDesc {
+                thickness: s.thickness,
+                friction: s.friction,
+            }),
+        };
+        for (desc, col) in scene.colliders.iter_mut().zip(sim.colliders()) {
+            desc.thickness = col.thickness;
+            desc.velocity = col.velocity.to_array();
+            desc.friction = FrictionDesc {
+                static_coefficient: col.friction.static_coefficient,
+                kinetic_coefficient: col.friction.kinetic_coefficient,
+            };
+        }
+        let pinned: Vec<u32> = (0..sim.particles().len())
+            .filter(|&i| sim.particles().is_pinned(i))
+            .map(|i| i as u32)
+            .collect();
+        scene.cloth.pins = PinsDesc {
+            corners: Vec::new(),
+            edges: Vec::new(),
+            indices: pinned,
+        };
+        scene
+    }
+}
