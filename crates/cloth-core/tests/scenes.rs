@@ -264,7 +264,7 @@ fn saved_settings_rerun_to_the_same_state() {
     let mut config = *live.config();
     config.material.warp.stiffness = 321.0;
     config.damping = 0.01;
-    config.air.wind = cloth_core::glam::Vec3::new(1.0, 0.0, 0.5);
+    config.air.wind = glam::Vec3::new(1.0, 0.0, 0.5);
     config.integrator = cloth_core::Integrator::Verlet;
     config.substeps = 77;
     live.set_config(config).expect("config");
