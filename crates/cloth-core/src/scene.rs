@@ -416,13 +416,42 @@ impl Default for FrictionDesc {
 }
 
 /// `substeps = 12` or `substeps = "auto"`.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 #[serde(untagged)]
 pub enum SubstepsDesc {
     /// A fixed count, 1 ..= 100000.
     Count(u32),
     /// `"auto"`: chosen per integrator (see [`tune_for_integrator`]).
     Word(String),
+}
+
+impl<'de> Deserialize<'de> for SubstepsDesc {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct Visitor;
+        impl serde::de::Visitor<'_> for Visitor {
+            type Value = SubstepsDesc;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("an integer 1 ..= 100000 or \"auto\"")
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> std::result::Result<Self::Value, E> {
+                u32::try_from(v)
+                    .map(SubstepsDesc::Count)
+                    .map_err(|_| E::invalid_value(serde::de::Unexpected::Signed(v), &self))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> std::result::Result<Self::Value, E> {
+                u32::try_from(v)
+                    .map(SubstepsDesc::Count)
+                    .map_err(|_| E::invalid_value(serde::de::Unexpected::Unsigned(v), &self))
+            }
+            fn visit_str<E: serde::de::Error>(
+                self,
+                v: &str,
+            ) -> std::result::Result<Self::Value, E> {
+                Ok(SubstepsDesc::Word(v.to_string()))
+            }
+        }
+        d.deserialize_any(Visitor)
+    }
 }
 
 impl Default for SubstepsDesc {
@@ -1244,7 +1273,7 @@ fn de_error(source: &str, file: &str, e: &toml::de::Error) -> ClothError {
     let mut message = e.message().to_string();
     let key = e
         .span()
-        .map(|s| source[s.start..s.end.min(source.len())].trim().to_string())
+        .and_then(|s| key_at(source, s.start))
         .unwrap_or_default();
     if let Some((field, expected)) = message
         .strip_prefix("unknown field `")
@@ -1268,6 +1297,44 @@ fn de_error(source: &str, file: &str, e: &toml::de::Error) -> ClothError {
     }
     let key = if key.len() > 60 { String::new() } else { key };
     scene_error(file, pos, &key, message)
+}
+
+/// The dotted key path whose key or value holds byte `at` of `source` (the deepest one).
+fn key_at(source: &str, at: usize) -> Option<String> {
+    fn walk(table: &toml::de::DeTable<'_>, at: usize, prefix: &str) -> Option<String> {
+        for (k, v) in table {
+            let key = if prefix.is_empty() {
+                k.get_ref().to_string()
+            } else {
+                format!("{prefix}.{}", k.get_ref())
+            };
+            let (ks, vs) = (k.span(), v.span());
+            let inside = ks.contains(&at) || vs.contains(&at);
+            match v.get_ref() {
+                toml::de::DeValue::Table(t) => {
+                    if let Some(deeper) = walk(t, at, &key) {
+                        return Some(deeper);
+                    }
+                }
+                toml::de::DeValue::Array(items) => {
+                    for (i, item) in items.iter().enumerate() {
+                        if let toml::de::DeValue::Table(t) = item.get_ref()
+                            && let Some(deeper) = walk(t, at, &format!("{key}[{i}]"))
+                        {
+                            return Some(deeper);
+                        }
+                    }
+                }
+                _ => {}
+            }
+            if inside {
+                return Some(key);
+            }
+        }
+        None
+    }
+    let root = toml::de::DeTable::parse(source).ok()?;
+    walk(root.get_ref(), at, "")
 }
 
 /// Byte span of the value at a dotted key path in `source` (best effort, for positions).
