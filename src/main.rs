@@ -65,6 +65,12 @@ enum Command {
         /// Image size.
         #[arg(long, value_name = "WxH", default_value = "800x600", value_parser = parse_size)]
         size: [u32; 2],
+        /// Draw the triangle edges too.
+        #[arg(long)]
+        wireframe: bool,
+        /// Draw the springs, coloured by class (structural orange, shear green, bend blue).
+        #[arg(long)]
+        springs: bool,
     },
     /// Open the interactive viewer.
     View {
@@ -151,7 +157,14 @@ fn main() -> ExitCode {
             frames,
             png,
             size,
-        } => render(&scene, frames, &png, size),
+            wireframe,
+            springs,
+        } => {
+            let mut options = cloth_view::default_options(scene.scene);
+            options.wireframe = wireframe;
+            options.springs = springs;
+            render(&scene, frames, &png, size, &options)
+        }
         Command::View {
             scene,
             frames,
@@ -186,7 +199,13 @@ fn build(args: &SceneArgs) -> Result<Simulation, ExitCode> {
         })
 }
 
-fn render(args: &SceneArgs, frames: u64, png: &std::path::Path, size: [u32; 2]) -> ExitCode {
+fn render(
+    args: &SceneArgs,
+    frames: u64,
+    png: &std::path::Path,
+    size: [u32; 2],
+    options: &cloth_view::RenderOptions,
+) -> ExitCode {
     let mut sim = match build(args) {
         Ok(s) => s,
         Err(code) => return code,
@@ -207,9 +226,8 @@ fn render(args: &SceneArgs, frames: u64, png: &std::path::Path, size: [u32; 2]) 
     let adapter = gpu.adapter_name();
     let mut offscreen = cloth_view::Offscreen::new(gpu, size);
     let camera = cloth_view::default_camera(args.scene);
-    let options = cloth_view::default_options(args.scene);
     let result = offscreen
-        .render(&sim, &camera, &options)
+        .render(&sim, &camera, options)
         .and_then(|img| img.save(png).map_err(anyhow::Error::from));
     match result {
         Ok(()) => {

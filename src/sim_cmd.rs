@@ -66,12 +66,19 @@ pub struct SimArgs {
     /// currently single-threaded; this is recorded in the report).
     #[arg(long, value_name = "N", default_value = "1", value_parser = parse_threads)]
     pub threads: usize,
-    /// Override a scene key, in TOML syntax: --set cloth.resolution=[64,64]
-    /// --set solver.kind="xpbd" (repeatable).
-    #[arg(long = "set", value_name = "KEY=VALUE")]
+    #[arg(
+        long = "set",
+        value_name = "KEY=VALUE",
+        help = "Override a scene key, in TOML syntax: --set cloth.resolution=[64,64] \
+                --set solver.kind=\"xpbd\" (repeatable)"
+    )]
     pub set: Vec<String>,
-    /// Shorthand for --set cloth.resolution=[N,N].
-    #[arg(long, value_name = "N", value_parser = parse_resolution)]
+    #[arg(
+        long,
+        value_name = "N",
+        value_parser = parse_resolution,
+        help = "Shorthand for --set cloth.resolution=[N,N]"
+    )]
     pub resolution: Option<u32>,
     /// Shorthand for --set solver.kind="NAME".
     #[arg(long, value_name = "NAME", value_parser = parse_integrator)]
