@@ -157,3 +157,64 @@ fn render_writes_a_png_offscreen() {
     let img = image::open(&path).expect("a PNG").to_rgba8();
     assert_eq!(img.dimensions(), (96, 64));
 }
+
+/// Runs `cloth` with `env` changes (`None` removes a variable).
+fn cloth_env(args: &[&str], env: &[(&str, Option<&str>)]) -> (i32, String) {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_cloth"));
+    cmd.args(args).env("XDG_RUNTIME_DIR", std::env::temp_dir());
+    for (k, v) in env {
+        match v {
+            Some(v) => cmd.env(k, v),
+            None => cmd.env_remove(k),
+        };
+    }
+    let out = cmd.output().expect("run cloth");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn no_adapter_is_one_clear_sentence_not_a_panic() {
+    // a backend that does not exist on this platform: no adapter at all
+    let png = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("never.png");
+    let (code, stderr) = cloth_env(
+        &[
+            "render",
+            "drape",
+            "--frames",
+            "1",
+            "--resolution",
+            "4",
+            "--png",
+            png.to_str().unwrap(),
+        ],
+        &[("WGPU_BACKEND", Some("metal"))],
+    );
+    if cfg!(target_os = "macos") {
+        return;
+    }
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("no usable graphics adapter"), "{stderr}");
+    assert!(stderr.contains("mesa-vulkan-drivers"), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+}
+
+#[test]
+#[cfg(target_os = "linux")]
+fn no_display_is_one_clear_sentence_not_a_panic() {
+    let (code, stderr) = cloth_env(
+        &["view", "drape", "--frames", "1", "--resolution", "4"],
+        &[
+            ("DISPLAY", None),
+            ("WAYLAND_DISPLAY", None),
+            ("WAYLAND_SOCKET", None),
+        ],
+    );
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("no display"), "{stderr}");
+    assert!(stderr.contains("xvfb-run"), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}

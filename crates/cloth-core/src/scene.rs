@@ -363,6 +363,22 @@ pub struct ColliderDesc {
     /// Plane outward normal (normalised).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normal: Option<[f32; 3]>,
+    /// Capsule axis start, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub a: Option<[f32; 3]>,
+    /// Capsule axis end, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub b: Option<[f32; 3]>,
+    /// Box half side lengths, m, each `> 0`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub half_extents: Option<[f32; 3]>,
+    /// Box orientation as XYZ Euler angles, degrees. Default `[0, 0, 0]`.
+    #[serde(default)]
+    pub rotation: [f32; 3],
+    /// Angular velocity about the pivot (centre; capsule midpoint; plane point), rad/s.
+    /// Default `[0, 0, 0]`.
+    #[serde(default)]
+    pub angular_velocity: [f32; 3],
     /// Prescribed velocity, m/s. Default `[0, 0, 0]`.
     #[serde(default)]
     pub velocity: [f32; 3],
@@ -385,6 +401,8 @@ fn d_thickness() -> f32 {
 pub enum ColliderKind {
     Sphere,
     Plane,
+    Capsule,
+    Box,
 }
 
 /// `friction = { static, kinetic }`.
@@ -883,6 +901,43 @@ impl Scene {
                     })?;
                     positive(&key("radius"), r)?;
                 }
+                ColliderKind::Capsule => {
+                    for (k, v) in [("a", col.a), ("b", col.b)] {
+                        let v = v.ok_or_else(|| {
+                            invalid(key(k), "missing", "a capsule needs `a`, `b` and `radius`")
+                        })?;
+                        finite3(&key(k), v)?;
+                    }
+                    let r = col.radius.ok_or_else(|| {
+                        invalid(
+                            key("radius"),
+                            "missing",
+                            "a capsule needs `a`, `b` and `radius`",
+                        )
+                    })?;
+                    positive(&key("radius"), r)?;
+                }
+                ColliderKind::Box => {
+                    let center = col.center.ok_or_else(|| {
+                        invalid(
+                            key("center"),
+                            "missing",
+                            "a box needs `center` and `half_extents`",
+                        )
+                    })?;
+                    finite3(&key("center"), center)?;
+                    let h = col.half_extents.ok_or_else(|| {
+                        invalid(
+                            key("half_extents"),
+                            "missing",
+                            "a box needs `center` and `half_extents`",
+                        )
+                    })?;
+                    if !h.iter().all(|x| x.is_finite() && *x > 0.0) {
+                        return Err(invalid(key("half_extents"), h, "three finite numbers > 0"));
+                    }
+                    finite3(&key("rotation"), col.rotation)?;
+                }
                 ColliderKind::Plane => {
                     let point = col.point.ok_or_else(|| {
                         invalid(
@@ -906,6 +961,7 @@ impl Scene {
                 }
             }
             finite3(&key("velocity"), col.velocity)?;
+            finite3(&key("angular_velocity"), col.angular_velocity)?;
             non_negative(&key("thickness"), col.thickness)?;
             non_negative(&key("friction.static"), col.friction.static_coefficient)?;
             non_negative(&key("friction.kinetic"), col.friction.kinetic_coefficient)?;
@@ -1060,12 +1116,7 @@ impl Scene {
                 OrientationDesc::Vertical => Orientation::Vertical,
             })
             .origin(Vec3::from(c.origin))
-            .rotation(Quat::from_euler(
-                EulerRot::XYZ,
-                c.rotation[0].to_radians(),
-                c.rotation[1].to_radians(),
-                c.rotation[2].to_radians(),
-            ))
+            .rotation(euler_degrees(c.rotation))
             .velocity(Vec3::from(c.velocity))
             .mass(match (c.density, c.mass_per_particle) {
                 (_, Some(m)) => Mass::PerParticle(m),
@@ -1107,10 +1158,21 @@ impl Scene {
                     point: Vec3::from(col.point.unwrap_or_default()),
                     normal: Vec3::from(col.normal.unwrap_or([0.0, 1.0, 0.0])),
                 },
+                ColliderKind::Capsule => Shape::Capsule {
+                    a: Vec3::from(col.a.unwrap_or_default()),
+                    b: Vec3::from(col.b.unwrap_or_default()),
+                    radius: col.radius.unwrap_or(1.0),
+                },
+                ColliderKind::Box => Shape::Box {
+                    center: Vec3::from(col.center.unwrap_or_default()),
+                    half_extents: Vec3::from(col.half_extents.unwrap_or([1.0; 3])),
+                    rotation: euler_degrees(col.rotation),
+                },
             };
             sim.add_collider(Collider {
                 shape,
                 velocity: Vec3::from(col.velocity),
+                angular_velocity: Vec3::from(col.angular_velocity),
                 thickness: col.thickness,
                 friction: Friction::new(
                     col.friction.static_coefficient,
@@ -1120,6 +1182,16 @@ impl Scene {
         }
         Ok(sim)
     }
+}
+
+/// A rotation from XYZ Euler angles in degrees.
+fn euler_degrees(deg: [f32; 3]) -> Quat {
+    Quat::from_euler(
+        EulerRot::XYZ,
+        deg[0].to_radians(),
+        deg[1].to_radians(),
+        deg[2].to_radians(),
+    )
 }
 
 /// Sets `path` (dotted, `colliders[1].radius` style indices allowed) in a TOML table.
@@ -1512,6 +1584,7 @@ impl Scene {
         for (desc, col) in scene.colliders.iter_mut().zip(sim.colliders()) {
             desc.thickness = col.thickness;
             desc.velocity = col.velocity.to_array();
+            desc.angular_velocity = col.angular_velocity.to_array();
             desc.friction = FrictionDesc {
                 static_coefficient: col.friction.static_coefficient,
                 kinetic_coefficient: col.friction.kinetic_coefficient,

@@ -76,8 +76,8 @@ pub struct SimState {
     pub velocity: Vec<[f32; 3]>,
     /// Inverse masses (0 = pinned), 1/kg.
     pub inv_mass: Vec<f32>,
-    /// Each collider's moving anchor (a sphere's centre, a plane's point), m.
-    pub collider_anchors: Vec<[f32; 3]>,
+    /// Each collider's shape at the saved time (colliders move and turn).
+    pub collider_shapes: Vec<crate::collide::Shape>,
 }
 
 impl Simulation {
@@ -100,14 +100,7 @@ impl Simulation {
                 .map(|v| v.to_array())
                 .collect(),
             inv_mass: self.particles.inv_mass.clone(),
-            collider_anchors: self
-                .colliders
-                .iter()
-                .map(|c| match c.shape {
-                    crate::collide::Shape::Sphere { center, .. } => center.to_array(),
-                    crate::collide::Shape::Plane { point, .. } => point.to_array(),
-                })
-                .collect(),
+            collider_shapes: self.colliders.iter().map(|c| c.shape).collect(),
         }
     }
 
@@ -131,10 +124,10 @@ impl Simulation {
                 ));
             }
         }
-        if state.collider_anchors.len() != self.colliders.len() {
+        if state.collider_shapes.len() != self.colliders.len() {
             return Err(ClothError::invalid(
-                "state.collider_anchors",
-                state.collider_anchors.len(),
+                "state.collider_shapes",
+                state.collider_shapes.len(),
                 format!("{} entries (the scene's colliders)", self.colliders.len()),
             ));
         }
@@ -142,11 +135,37 @@ impl Simulation {
             .position
             .iter()
             .chain(&state.velocity)
-            .chain(&state.collider_anchors)
             .flatten()
             .all(|x| x.is_finite())
             && state.inv_mass.iter().all(|w| w.is_finite() && *w >= 0.0)
             && state.time.is_finite();
+        if !finite {
+            return Err(ClothError::invalid(
+                "state",
+                "non-finite values",
+                "finite positions, velocities and masses",
+            ));
+        }
+        // Each saved shape must be a valid collider of the same kind as the scene's.
+        for (i, (c, shape)) in self
+            .colliders
+            .iter()
+            .zip(&state.collider_shapes)
+            .enumerate()
+        {
+            if std::mem::discriminant(&c.shape) != std::mem::discriminant(shape) {
+                return Err(ClothError::invalid(
+                    format!("state.collider_shapes[{i}]"),
+                    shape,
+                    "the same kind of shape as the scene's collider",
+                ));
+            }
+            Collider {
+                shape: *shape,
+                ..*c
+            }
+            .validate(i)?;
+        }
         if !finite {
             return Err(ClothError::invalid(
                 "state",
@@ -163,11 +182,8 @@ impl Simulation {
             *dst = Vec3::from(*src);
         }
         self.particles.inv_mass.clone_from(&state.inv_mass);
-        for (c, a) in self.colliders.iter_mut().zip(&state.collider_anchors) {
-            match &mut c.shape {
-                crate::collide::Shape::Sphere { center, .. } => *center = Vec3::from(*a),
-                crate::collide::Shape::Plane { point, .. } => *point = Vec3::from(*a),
-            }
+        for (c, shape) in self.colliders.iter_mut().zip(&state.collider_shapes) {
+            c.shape = *shape;
         }
         self.pin_target.fill(None);
         self.refresh_stats();

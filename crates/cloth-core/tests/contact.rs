@@ -419,7 +419,7 @@ fn rising_plane_carries_the_cloth() {
             sim.step().unwrap();
             let plane_y = match sim.colliders()[0].shape {
                 cloth_core::Shape::Plane { point, .. } => point.y,
-                cloth_core::Shape::Sphere { .. } => unreachable!(),
+                _ => unreachable!("collider 0 is the plane"),
             };
             let p = sim.particles();
             for (x, v) in p.position.iter().zip(&p.velocity) {
@@ -429,7 +429,7 @@ fn rising_plane_carries_the_cloth() {
         }
         let plane_y = match sim.colliders()[0].shape {
             cloth_core::Shape::Plane { point, .. } => point.y,
-            cloth_core::Shape::Sphere { .. } => unreachable!(),
+            _ => unreachable!("collider 0 is the plane"),
         };
         let com = sim.particles().center_of_mass();
         eprintln!(

@@ -701,7 +701,7 @@ fn bad_colliders_are_rejected_and_leave_simulation_unchanged() {
         cloth_core::Shape::Plane { normal, .. } => {
             assert!(normal.abs_diff_eq(Vec3::new(0.0, 0.6, 0.8), 1e-6));
         }
-        cloth_core::Shape::Sphere { .. } => panic!("expected a plane"),
+        other => panic!("expected a plane, got {other:?}"),
     }
 }
 

@@ -558,6 +558,9 @@ impl App {
         for a in actions {
             self.apply(a);
         }
+        // centre the scene in the part of the window the panel leaves free
+        let panel_px = self.panel.width * full.pixels_per_point;
+        self.projection.shift_x = panel_px / gfx.targets.size[0].max(1) as f32;
 
         let [w, h] = gfx.targets.size;
         let capture_due = self.options.screenshot.is_some()

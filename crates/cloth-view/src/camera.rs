@@ -109,6 +109,9 @@ pub struct Projection {
     pub near: f32,
     /// Far plane distance, m.
     pub far: f32,
+    /// Horizontal lens shift in NDC units: the view's centre appears at NDC x = `shift_x`
+    /// (e.g. to centre the scene in the part of a window a side panel leaves free). Default 0.
+    pub shift_x: f32,
 }
 
 impl Projection {
@@ -120,6 +123,7 @@ impl Projection {
             aspect: 1.0,
             near: 0.02,
             far: 100.0,
+            shift_x: 0.0,
         };
         p.resize(width, height);
         p
@@ -130,11 +134,12 @@ impl Projection {
         self.aspect = width.max(1) as f32 / height.max(1) as f32;
     }
 
-    /// The projection matrix (right-handed, depth 0..1).
+    /// The projection matrix (right-handed, depth 0..1), lens shift included.
     #[must_use]
     pub fn matrix(&self) -> Mat4 {
         // WebGPU: depth 0..1, y up in NDC
-        directx::perspective(self.fovy, self.aspect, self.near, self.far)
+        Mat4::from_translation(Vec3::new(self.shift_x, 0.0, 0.0))
+            * directx::perspective(self.fovy, self.aspect, self.near, self.far)
     }
 }
 
@@ -443,6 +448,17 @@ mod tests {
         let fly = FlyController::default();
         fly.look(&mut cam, 50.0, 20.0);
         assert_eq!(cam.eye, eye);
+    }
+
+    #[test]
+    fn lens_shift_moves_the_target_and_picking_follows() {
+        let (cam, mut proj) = setup();
+        proj.shift_x = 0.25;
+        let px = cam.project(&proj, [320, 240], cam.target).unwrap();
+        assert!((px - Vec2::new(200.0, 120.0)).length() < 1e-3, "{px}");
+        let ray = cam.ray_through(&proj, [320, 240], px);
+        let closest = ray.at((cam.target - ray.origin).dot(ray.dir));
+        assert!(closest.distance(cam.target) < 1e-4);
     }
 
     #[test]

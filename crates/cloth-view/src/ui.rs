@@ -84,6 +84,8 @@ pub struct Panel {
     pub integrator: Integrator,
     /// Whether the panel is shown.
     pub visible: bool,
+    /// Width the panel took in the last frame, points (0 when hidden).
+    pub width: f32,
 }
 
 impl Panel {
@@ -95,6 +97,7 @@ impl Panel {
             resolution,
             integrator,
             visible: true,
+            width: 0.0,
         }
     }
 
@@ -109,9 +112,10 @@ impl Panel {
     ) -> Vec<Action> {
         let mut actions = Vec::new();
         if !self.visible {
+            self.width = 0.0;
             return actions;
         }
-        egui::Panel::left("cloth-panel")
+        let response = egui::Panel::left("cloth-panel")
             .default_size(270.0)
             .resizable(true)
             .show(ui, |ui| {
@@ -119,6 +123,7 @@ impl Panel {
                     self.contents(ui, config, options, mode, status, &mut actions);
                 });
             });
+        self.width = response.response.rect.width();
         actions
     }
 
@@ -135,11 +140,7 @@ impl Panel {
         status_block(ui, status);
         ui.horizontal(|ui| {
             if ui
-                .button(if status.paused {
-                    "▶ run"
-                } else {
-                    "⏸ pause"
-                })
+                .button(if status.paused { "run" } else { "pause" })
                 .clicked()
             {
                 actions.push(Action::TogglePause);
@@ -286,14 +287,14 @@ fn spring_sliders(ui: &mut egui::Ui, name: &str, p: &mut SpringParams, max_k: f3
 
 fn status_block(ui: &mut egui::Ui, s: &Status) {
     ui.monospace(format!(
-        "{:5.1} fps   sim {:6.2} ms/frame\nt = {:8.3} s{}\n{} particles  {} springs\nE = {:+.4e} J\nmax strain {:.4}",
+        "{:.1} fps, sim {:.1} ms/frame\nt = {:.3} s{}\n{} particles, {} springs\nE = {:+.4e} J\nmax strain {:.4}",
         s.fps,
         s.sim_ms,
         s.time,
         if s.paused {
-            "  (paused)"
+            " (paused)"
         } else if s.behind {
-            "  (slower than real time)"
+            " (slow-motion)"
         } else {
             ""
         },

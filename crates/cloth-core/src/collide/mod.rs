@@ -2,7 +2,7 @@
 
 pub mod self_collision;
 
-use glam::Vec3;
+use glam::{Quat, Vec3};
 
 use crate::error::{ClothError, Result, check};
 use crate::particles::Particles;
@@ -46,6 +46,7 @@ impl Friction {
 
 /// The geometry of a collider, at its current position.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "scene", derive(serde::Serialize, serde::Deserialize))]
 pub enum Shape {
     /// A solid ball.
     Sphere {
@@ -60,6 +61,24 @@ pub enum Shape {
         point: Vec3,
         /// Outward normal (unit length after [`Collider::validate`]).
         normal: Vec3,
+    },
+    /// A capsule: all points within `radius` of the segment from `a` to `b`.
+    Capsule {
+        /// One end of the axis, m.
+        a: Vec3,
+        /// The other end of the axis, m.
+        b: Vec3,
+        /// Radius, m, `> 0`.
+        radius: f32,
+    },
+    /// An oriented box.
+    Box {
+        /// Centre, m.
+        center: Vec3,
+        /// Half the side lengths along the box's own axes, m, each `> 0`.
+        half_extents: Vec3,
+        /// Orientation of the box's axes (unit quaternion).
+        rotation: Quat,
     },
 }
 
@@ -76,13 +95,84 @@ impl Shape {
                 (len - radius, n)
             }
             Shape::Plane { point, normal } => ((p - point).dot(normal), normal),
+            Shape::Capsule { a, b, radius } => {
+                let ab = b - a;
+                let len_sq = ab.length_squared();
+                let t = if len_sq > 0.0 {
+                    ((p - a).dot(ab) / len_sq).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                let d = p - (a + t * ab);
+                let len = d.length();
+                let n = if len > 0.0 {
+                    d / len
+                } else {
+                    ab.any_orthonormal_vector()
+                };
+                (len - radius, n)
+            }
+            Shape::Box {
+                center,
+                half_extents,
+                rotation,
+            } => {
+                let local = rotation.inverse() * (p - center);
+                let q = local.abs() - half_extents;
+                let outside = q.max(Vec3::ZERO);
+                let out_len = outside.length();
+                if out_len > 0.0 {
+                    let n_local = outside * local.signum() / out_len;
+                    (out_len, rotation * n_local)
+                } else {
+                    // Inside: the nearest face.
+                    let axis = if q.x >= q.y && q.x >= q.z {
+                        Vec3::X
+                    } else if q.y >= q.z {
+                        Vec3::Y
+                    } else {
+                        Vec3::Z
+                    };
+                    let n_local = axis * local.dot(axis).signum();
+                    (q.max_element(), rotation * n_local)
+                }
+            }
+        }
+    }
+
+    /// The point the shape turns about (a sphere's or box's centre, a plane's point, a
+    /// capsule's midpoint), m.
+    #[must_use]
+    pub fn pivot(&self) -> Vec3 {
+        match *self {
+            Shape::Sphere { center, .. } | Shape::Box { center, .. } => center,
+            Shape::Plane { point, .. } => point,
+            Shape::Capsule { a, b, .. } => 0.5 * (a + b),
         }
     }
 
     fn translate(&mut self, by: Vec3) {
         match self {
-            Shape::Sphere { center, .. } => *center += by,
+            Shape::Sphere { center, .. } | Shape::Box { center, .. } => *center += by,
             Shape::Plane { point, .. } => *point += by,
+            Shape::Capsule { a, b, .. } => {
+                *a += by;
+                *b += by;
+            }
+        }
+    }
+
+    /// Turns the shape by `turn` about its pivot.
+    fn rotate(&mut self, turn: Quat) {
+        let pivot = self.pivot();
+        match self {
+            Shape::Sphere { .. } => {}
+            Shape::Plane { normal, .. } => *normal = (turn * *normal).normalize(),
+            Shape::Capsule { a, b, .. } => {
+                *a = pivot + turn * (*a - pivot);
+                *b = pivot + turn * (*b - pivot);
+            }
+            Shape::Box { rotation, .. } => *rotation = (turn * *rotation).normalize(),
         }
     }
 }
@@ -95,6 +185,9 @@ pub struct Collider {
     pub shape: Shape,
     /// Prescribed linear velocity, m/s. Default zero (static).
     pub velocity: Vec3,
+    /// Prescribed angular velocity about the shape's pivot ([`Shape::pivot`]), rad/s.
+    /// Default zero.
+    pub angular_velocity: Vec3,
     /// Contact thickness, m, `>= 0`: particles are kept this far outside the surface.
     /// Default 0.01 m.
     pub thickness: f32,
@@ -121,6 +214,7 @@ impl Collider {
         Self {
             shape,
             velocity: Vec3::ZERO,
+            angular_velocity: Vec3::ZERO,
             thickness: 0.01,
             friction: Friction::default(),
         }
@@ -147,6 +241,40 @@ impl Collider {
         self
     }
 
+    /// Turning at `angular_velocity` (rad/s) about its pivot.
+    #[must_use]
+    pub fn with_angular_velocity(mut self, angular_velocity: Vec3) -> Self {
+        self.angular_velocity = angular_velocity;
+        self
+    }
+
+    /// A static capsule around the segment `a`–`b`.
+    #[must_use]
+    pub fn capsule(a: Vec3, b: Vec3, radius: f32) -> Self {
+        Self::new(Shape::Capsule { a, b, radius })
+    }
+
+    /// A static box.
+    #[must_use]
+    pub fn cuboid(center: Vec3, half_extents: Vec3, rotation: Quat) -> Self {
+        Self::new(Shape::Box {
+            center,
+            half_extents,
+            rotation,
+        })
+    }
+
+    /// Velocity of the collider's surface material at `p`: v + ω × (p − pivot), m/s.
+    #[inline]
+    #[must_use]
+    pub fn velocity_at(&self, p: Vec3) -> Vec3 {
+        if self.angular_velocity == Vec3::ZERO {
+            self.velocity
+        } else {
+            self.velocity + self.angular_velocity.cross(p - self.shape.pivot())
+        }
+    }
+
     /// Checks every field (naming the collider by `index`) and normalises a plane's normal.
     pub fn validate(mut self, index: usize) -> Result<Self> {
         let name = |field: &str| format!("colliders[{index}].{field}");
@@ -168,8 +296,32 @@ impl Collider {
                 }
                 *normal /= len;
             }
+            Shape::Capsule { a, b, radius } => {
+                check::finite_vec(&name("a"), *a)?;
+                check::finite_vec(&name("b"), *b)?;
+                check::positive(&name("radius"), *radius)?;
+            }
+            Shape::Box {
+                center,
+                half_extents,
+                rotation,
+            } => {
+                check::finite_vec(&name("center"), *center)?;
+                check::positive(&name("half_extents.x"), half_extents.x)?;
+                check::positive(&name("half_extents.y"), half_extents.y)?;
+                check::positive(&name("half_extents.z"), half_extents.z)?;
+                if !rotation.is_finite() || (rotation.length() - 1.0).abs() > 1e-3 {
+                    return Err(ClothError::invalid(
+                        name("rotation"),
+                        *rotation,
+                        "a finite unit quaternion",
+                    ));
+                }
+                *rotation = rotation.normalize();
+            }
         }
         check::finite_vec(&name("velocity"), self.velocity)?;
+        check::finite_vec(&name("angular_velocity"), self.angular_velocity)?;
         check::non_negative(&name("thickness"), self.thickness)?;
         check::non_negative(
             &name("friction.static_coefficient"),
@@ -186,6 +338,10 @@ impl Collider {
     pub(crate) fn advance(&mut self, h: f32) {
         if self.velocity != Vec3::ZERO {
             self.shape.translate(self.velocity * h);
+        }
+        if self.angular_velocity != Vec3::ZERO {
+            self.shape
+                .rotate(Quat::from_scaled_axis(self.angular_velocity * h));
         }
     }
 }
@@ -233,7 +389,8 @@ pub(crate) fn resolve_contacts(
             }
             stats.contacts += 1;
             *x -= phi * n;
-            let v_rel = *v - collider.velocity;
+            let v_col = collider.velocity_at(*x);
+            let v_rel = *v - v_col;
             let vn = v_rel.dot(n);
             if vn >= 0.0 {
                 continue;
@@ -246,7 +403,7 @@ pub(crate) fn resolve_contacts(
             } else {
                 vt * (1.0 - mu_k * dvn / vt_len).max(0.0)
             };
-            *v = collider.velocity + vt_new;
+            *v = v_col + vt_new;
             *x += pos_weight * (vt_new - vt);
         }
     }

@@ -176,7 +176,7 @@ pub(super) fn substep(ctx: &mut SubstepCtx<'_>, sc: &mut ImplicitScratch, cg: &m
             let (dist, nrm) = col.shape.distance(x[i]);
             let slack = 0.1 * col.thickness + 1e-5;
             if dist - col.thickness < slack {
-                let vn = (v[i] - col.velocity).dot(nrm);
+                let vn = (v[i] - col.velocity_at(x[i])).dot(nrm);
                 if vn <= 0.0 {
                     // Δv·n = −v_rel·n: the new normal velocity equals the collider's.
                     sc.dv[i] = -vn * nrm;
@@ -273,7 +273,7 @@ pub(super) fn substep(ctx: &mut SubstepCtx<'_>, sc: &mut ImplicitScratch, cg: &m
             let col = &ctx.colliders[ci as usize];
             let impulse = (sc.q[i] - sc.rhs[i]).dot(nrm).max(0.0);
             let dvn = impulse * p.inv_mass[i];
-            let v_rel = v_new - col.velocity;
+            let v_rel = v_new - col.velocity_at(p.position[i]);
             let vt = v_rel - v_rel.dot(nrm) * nrm;
             let vt_len = vt.length();
             let fr = col.friction;

@@ -238,7 +238,7 @@ fn solve_contacts(ctx: &mut SubstepCtx<'_>, prev: &[Vec3], h: f32) -> u32 {
             contacts += 1;
             let push = -phi;
             *x += push * nrm;
-            let rel = (*x - x0) - col.velocity * h;
+            let rel = (*x - x0) - col.velocity_at(*x) * h;
             let tangential = rel - rel.dot(nrm) * nrm;
             let t_len = tangential.length();
             if t_len <= mu_s * push {

@@ -2,7 +2,7 @@
 //! the current positions, collider and ground meshes, and line lists.
 
 use bytemuck::{Pod, Zeroable};
-use cloth_core::glam::Vec3;
+use cloth_core::glam::{Quat, Vec3};
 use cloth_core::{Collider, Shape, SpringKind};
 
 /// Material ids of [`MeshVertex::material`] (the `material` switch of `mesh.wgsl`).
@@ -138,6 +138,88 @@ pub fn sphere(center: Vec3, radius: f32, vertices: &mut Vec<MeshVertex>, indices
     }
 }
 
+/// Appends a capsule around the segment `a`–`b`: two hemispheres joined by a cylinder.
+pub fn capsule(
+    a: Vec3,
+    b: Vec3,
+    radius: f32,
+    vertices: &mut Vec<MeshVertex>,
+    indices: &mut Vec<u32>,
+) {
+    const STACKS: u32 = 24; // even: the equator ring is emitted twice, once per cap
+    const SLICES: u32 = 48;
+    let axis = (b - a).normalize_or(Vec3::Y);
+    let t1 = axis.any_orthonormal_vector();
+    let t2 = t1.cross(axis);
+    let base = vertices.len() as u32;
+    let rings: Vec<(u32, Vec3)> = (0..=STACKS / 2)
+        .map(|i| (i, b))
+        .chain((STACKS / 2..=STACKS).map(|i| (i, a)))
+        .collect();
+    for &(i, centre) in &rings {
+        let theta = std::f32::consts::PI * i as f32 / STACKS as f32;
+        for j in 0..=SLICES {
+            let phi = std::f32::consts::TAU * j as f32 / SLICES as f32;
+            let n = t1 * (theta.sin() * phi.cos())
+                + axis * theta.cos()
+                + t2 * (theta.sin() * phi.sin());
+            vertices.push(MeshVertex {
+                position: (centre + n * radius).to_array(),
+                normal: n.to_array(),
+                uv: [j as f32 / SLICES as f32, i as f32 / STACKS as f32],
+                material: material::SPHERE,
+            });
+        }
+    }
+    let row = SLICES + 1;
+    for r in 0..rings.len() as u32 - 1 {
+        for j in 0..SLICES {
+            let p = base + r * row + j;
+            let q = p + row;
+            indices.extend_from_slice(&[p, p + 1, q, p + 1, q + 1, q]);
+        }
+    }
+}
+
+/// Appends an oriented box.
+pub fn cuboid(
+    center: Vec3,
+    half: Vec3,
+    rotation: Quat,
+    vertices: &mut Vec<MeshVertex>,
+    indices: &mut Vec<u32>,
+) {
+    for axis in 0..3 {
+        for sign in [-1.0f32, 1.0] {
+            let mut n_local = Vec3::ZERO;
+            n_local[axis] = sign;
+            let (u_axis, v_axis) = ((axis + 1) % 3, (axis + 2) % 3);
+            let base = vertices.len() as u32;
+            let n = rotation * n_local;
+            for (su, sv) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                let mut local = n_local * half;
+                local[u_axis] = su * half[u_axis];
+                local[v_axis] = sv * half[v_axis];
+                let p = center + rotation * local;
+                vertices.push(MeshVertex {
+                    position: p.to_array(),
+                    normal: n.to_array(),
+                    uv: [0.5 * (su + 1.0), 0.5 * (sv + 1.0)],
+                    material: material::SPHERE,
+                });
+            }
+            let p0 = Vec3::from(vertices[base as usize].position);
+            let p1 = Vec3::from(vertices[base as usize + 1].position);
+            let p2 = Vec3::from(vertices[base as usize + 2].position);
+            if (p1 - p0).cross(p2 - p0).dot(n) > 0.0 {
+                indices.extend_from_slice(&[base, base + 1, base + 2, base, base + 2, base + 3]);
+            } else {
+                indices.extend_from_slice(&[base, base + 2, base + 1, base, base + 3, base + 2]);
+            }
+        }
+    }
+}
+
 /// Appends a square of side `2 * half` in the plane through `point` with `normal`, centred at
 /// the point of the plane closest to `around`. UVs are world metres along the plane.
 pub fn ground(
@@ -187,6 +269,12 @@ pub fn colliders(
             Shape::Plane { point, normal } => {
                 ground(point, normal, around, 12.0, vertices, indices);
             }
+            Shape::Capsule { a, b, radius } => capsule(a, b, radius, vertices, indices),
+            Shape::Box {
+                center,
+                half_extents,
+                rotation,
+            } => cuboid(center, half_extents, rotation, vertices, indices),
         }
     }
 }

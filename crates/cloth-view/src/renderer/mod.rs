@@ -413,7 +413,7 @@ impl Renderer {
         let triangles = sim.topology().triangles();
         let shadow = sim.colliders().iter().find_map(|c| match c.shape {
             Shape::Sphere { center, radius } => Some((center, radius)),
-            Shape::Plane { .. } => None,
+            _ => None,
         });
         let globals = Globals::new(camera, projection, options, shadow);
         queue.write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
