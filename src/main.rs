@@ -15,17 +15,20 @@ use cloth_core::{Integrator, Simulation};
 use cloth_view::SceneKind;
 
 const AFTER_HELP: &str = "\
-Scenes:
+Scenes (`cloth scenes` lists all built-in ones; any TOML scene file works too):
   drape       a 1.2 m cloth dropped onto a ball on the ground (the default)
-  hanging     a 1 m curtain hanging from its two top corners
-  peer-ball   the peer benchmark: a stiff cloth on a frictionless ball
+  hanging     a 1 m curtain pinned along its top edge
   flag        a flag pinned along its left edge in gusty wind
+  peer-ball   the peer benchmark: a stiff cloth on a frictionless ball
+  table, sweep, euler-sheet, verlet-swing, implicit-drape, xpbd-curtain
 
 Examples:
   cloth                                   open the viewer on the drape
   cloth sim drape --frames 300            run headless, print energies and strains
   cloth render drape --frames 90 --png drape.png --size 800x600
   cloth view flag --resolution 32
+  cloth view my.toml                      open a scene file (the panel saves one)
+  cloth sim my.toml --out frames --format obj,glb --report run.json
 
 Viewer controls: left-drag on the cloth grabs it, elsewhere orbits; right/middle-drag pans;
 wheel zooms; Ctrl/Shift-click pins or unpins; Space pause, N single step, R reset,
@@ -90,19 +93,42 @@ enum Command {
 
 #[derive(Debug, Args)]
 struct SceneArgs {
-    /// The scene: drape, hanging, peer-ball or flag.
-    #[arg(value_name = "SCENE", default_value = "drape", value_parser = parse_scene)]
+    /// A built-in scene (`cloth scenes` lists them) or a TOML scene file.
+    #[arg(value_name = "SCENE", default_value = "drape")]
+    scene: String,
+    /// Particles along the cloth's rows (columns in proportion). Default: the scene's.
+    #[arg(long, value_name = "N", value_parser = parse_resolution)]
+    resolution: Option<usize>,
+    /// The time integrator. Default: the scene's.
+    #[arg(long, value_name = "NAME", value_parser = parse_integrator)]
+    integrator: Option<Integrator>,
+    #[arg(
+        long = "set",
+        value_name = "KEY=VALUE",
+        help = "Override a scene key in TOML syntax, e.g. --set forces.air.wind=[3,0,0] (repeatable)"
+    )]
+    set: Vec<String>,
+}
+
+/// A loaded scene with the resolution and integrator to build it with.
+struct Chosen {
     scene: SceneKind,
-    /// Particles along each side of the cloth.
-    #[arg(long, value_name = "N", default_value = "48", value_parser = parse_resolution)]
     resolution: usize,
-    /// The time integrator: forward-euler, symplectic-euler or verlet.
-    #[arg(long, value_name = "NAME", default_value = "symplectic-euler", value_parser = parse_integrator)]
     integrator: Integrator,
 }
 
-fn parse_scene(s: &str) -> Result<SceneKind, String> {
-    SceneKind::from_name(s).ok_or_else(|| format!("unknown scene: allowed {}", SceneKind::names()))
+impl SceneArgs {
+    fn load(&self) -> Result<Chosen, ExitCode> {
+        let scene = SceneKind::load(&self.scene, &self.set).map_err(|e| {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        })?;
+        Ok(Chosen {
+            resolution: self.resolution.unwrap_or_else(|| scene.resolution()),
+            integrator: self.integrator.unwrap_or_else(|| scene.integrator()),
+            scene,
+        })
+    }
 }
 
 fn parse_frames(s: &str) -> Result<u64, String> {
@@ -115,8 +141,8 @@ fn parse_frames(s: &str) -> Result<u64, String> {
 fn parse_resolution(s: &str) -> Result<usize, String> {
     s.parse()
         .ok()
-        .filter(|r| (2..=4096).contains(r))
-        .ok_or_else(|| "allowed an integer in 2 ..= 4096".into())
+        .filter(|r| (2..=8192).contains(r))
+        .ok_or_else(|| "allowed an integer in 2 ..= 8192".into())
 }
 
 fn parse_integrator(s: &str) -> Result<Integrator, String> {
@@ -140,9 +166,10 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let command = cli.command.unwrap_or(Command::View {
         scene: SceneArgs {
-            scene: SceneKind::Drape,
-            resolution: 48,
-            integrator: Integrator::SymplecticEuler,
+            scene: "drape".into(),
+            resolution: None,
+            integrator: None,
+            set: Vec::new(),
         },
         frames: None,
         size: [1280, 800],
@@ -160,10 +187,14 @@ fn main() -> ExitCode {
             wireframe,
             springs,
         } => {
-            let mut options = cloth_view::default_options(scene.scene);
+            let chosen = match scene.load() {
+                Ok(c) => c,
+                Err(code) => return code,
+            };
+            let mut options = cloth_view::default_options(&chosen.scene);
             options.wireframe = wireframe;
             options.springs = springs;
-            render(&scene, frames, &png, size, &options)
+            render(&chosen, frames, &png, size, &options)
         }
         Command::View {
             scene,
@@ -171,10 +202,14 @@ fn main() -> ExitCode {
             size,
             screenshot,
         } => {
+            let chosen = match scene.load() {
+                Ok(c) => c,
+                Err(code) => return code,
+            };
             let options = cloth_view::app::ViewOptions {
-                scene: scene.scene,
-                resolution: scene.resolution,
-                integrator: scene.integrator,
+                scene: chosen.scene,
+                resolution: chosen.resolution,
+                integrator: chosen.integrator,
                 frames,
                 size,
                 screenshot,
@@ -190,7 +225,7 @@ fn main() -> ExitCode {
     }
 }
 
-fn build(args: &SceneArgs) -> Result<Simulation, ExitCode> {
+fn build(args: &Chosen) -> Result<Simulation, ExitCode> {
     args.scene
         .build(args.resolution, args.integrator)
         .map_err(|e| {
@@ -200,7 +235,7 @@ fn build(args: &SceneArgs) -> Result<Simulation, ExitCode> {
 }
 
 fn render(
-    args: &SceneArgs,
+    args: &Chosen,
     frames: u64,
     png: &std::path::Path,
     size: [u32; 2],
@@ -225,7 +260,7 @@ fn render(
     };
     let adapter = gpu.adapter_name();
     let mut offscreen = cloth_view::Offscreen::new(gpu, size);
-    let camera = cloth_view::default_camera(args.scene);
+    let camera = cloth_view::default_camera(&args.scene);
     let result = offscreen
         .render(&sim, &camera, options)
         .and_then(|img| img.save(png).map_err(anyhow::Error::from));

@@ -1465,6 +1465,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
         "xpbd-curtain",
         include_str!("../../../scenes/xpbd-curtain.toml"),
     ),
+    ("sweep", include_str!("../../../scenes/sweep.toml")),
 ];
 
 /// The TOML source of built-in scene `name`.

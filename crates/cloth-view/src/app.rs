@@ -47,7 +47,11 @@ pub struct ViewOptions {
 /// # Errors
 /// When there is no display, no adapter, or the scene cannot be built.
 pub fn run(options: ViewOptions) -> anyhow::Result<()> {
-    let world = World::new(options.scene, options.resolution, options.integrator)?;
+    let world = World::new(
+        options.scene.clone(),
+        options.resolution,
+        options.integrator,
+    )?;
     let event_loop = EventLoop::new().map_err(|e| {
         anyhow!(
             "no display to open a window on ({e}); set DISPLAY or WAYLAND_DISPLAY, or run \
@@ -192,18 +196,18 @@ struct App {
 
 impl App {
     fn new(options: ViewOptions, world: World) -> Self {
-        let scene = world.scene;
+        let scene = world.scene.clone();
         Self {
-            panel: Panel::new(scene, world.resolution, world.integrator),
+            panel: Panel::new(scene.clone(), world.resolution, world.integrator),
             world,
             gfx: None,
-            camera: crate::default_camera(scene),
+            camera: crate::default_camera(&scene),
             projection: Projection::new(options.size[0], options.size[1], crate::FOVY),
             options,
             orbit: OrbitController::default(),
             fly: FlyController::default(),
             mode: CameraMode::Orbit,
-            render: crate::default_options(scene),
+            render: crate::default_options(&scene),
             cursor: Vec2::ZERO,
             modifiers: ModifiersState::empty(),
             drag: Drag::None,
@@ -286,7 +290,7 @@ impl App {
     }
 
     fn reset_view(&mut self) {
-        self.camera = crate::default_camera(self.world.scene);
+        self.camera = crate::default_camera(&self.world.scene);
     }
 
     fn release_grab(&mut self) {
@@ -441,10 +445,11 @@ impl App {
                 integrator,
             } => {
                 self.drag = Drag::None;
+                let scene = *scene;
                 let changed_scene = scene != world.scene;
                 let (old_scene, old_res, old_int) =
-                    (world.scene, world.resolution, world.integrator);
-                world.scene = scene;
+                    (world.scene.clone(), world.resolution, world.integrator);
+                world.scene = scene.clone();
                 world.resolution = resolution;
                 world.integrator = integrator;
                 world.reset(None);
@@ -455,11 +460,21 @@ impl App {
                     world.integrator = old_int;
                 } else if changed_scene {
                     self.render.floor = Some(scene.display_floor());
-                    self.camera = crate::default_camera(scene);
+                    self.camera = crate::default_camera(&scene);
                     if let Some(g) = &self.gfx {
                         g.window.set_title(&format!("cloth — {scene}"));
                     }
                 }
+            }
+            Action::Save(path) => {
+                let saved = world
+                    .scene
+                    .effective(world.resolution, world.integrator)
+                    .with_settings_of(&world.sim);
+                world.message = Some(match std::fs::write(&path, saved.to_toml()) {
+                    Ok(()) => format!("saved the scene to {}", path.display()),
+                    Err(e) => format!("cannot save the scene to {}: {e}", path.display()),
+                });
             }
             Action::Config(config) => match world.sim.set_config(config) {
                 Ok(()) => {

@@ -33,14 +33,14 @@ pub use scene::SceneKind;
 
 /// The camera that frames `scene` nicely for the default window and the PNG renders.
 #[must_use]
-pub fn default_camera(scene: SceneKind) -> Camera {
+pub fn default_camera(scene: &SceneKind) -> Camera {
     let (target, distance) = scene.focus();
     Camera::looking_at(target, distance)
 }
 
 /// The render options that suit `scene` (its display floor).
 #[must_use]
-pub fn default_options(scene: SceneKind) -> RenderOptions {
+pub fn default_options(scene: &SceneKind) -> RenderOptions {
     RenderOptions {
         floor: Some(scene.display_floor()),
         ..RenderOptions::default()

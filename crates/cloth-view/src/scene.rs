@@ -1,134 +1,169 @@
-//! The built-in scenes the viewer and the `cloth` binary know by name.
+//! The scene the viewer shows: a scene file (a built-in one by name, or any TOML file), as
+//! described in `docs/scenes.md`, built at a chosen resolution and integrator.
 
 use cloth_core::glam::Vec3;
-use cloth_core::{
-    Edge, GridBuilder, Gust, Integrator, Mass, Material, Orientation, SimConfig, Simulation,
-    SpringParams, presets,
-};
+use cloth_core::scene::{self, ColliderKind, Scene, SubstepsDesc};
+use cloth_core::{ClothError, Integrator, Simulation};
 
-/// A built-in scene.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum SceneKind {
-    /// The seed's scene: a square cloth dropped onto a ball resting on the ground.
-    #[default]
-    Drape,
-    /// A curtain hanging from its two top corners.
-    Hanging,
-    /// The peer benchmark's cloth on a frictionless ball (Taichi's `mass_spring_3d_ggui`).
-    PeerBall,
-    /// A flag pinned along its left edge, in gusty wind.
-    Flag,
+/// A scene to view: its name (a built-in name or the file path) and its description.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneKind {
+    name: String,
+    scene: Scene,
 }
 
 impl SceneKind {
-    /// Every scene, in menu order.
-    pub const ALL: [SceneKind; 4] = [Self::Drape, Self::Hanging, Self::PeerBall, Self::Flag];
+    /// Loads a built-in scene by name, or a TOML scene file, with `--set` overrides.
+    ///
+    /// # Errors
+    /// The scene error naming the file, line, column and key.
+    pub fn load(name_or_path: &str, overrides: &[String]) -> Result<Self, ClothError> {
+        let (scene, _) = scene::load(name_or_path, overrides)?;
+        Ok(Self {
+            name: name_or_path.to_string(),
+            scene,
+        })
+    }
 
-    /// The scene's command-line name.
+    /// The built-in scene `name`.
     #[must_use]
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Drape => "drape",
-            Self::Hanging => "hanging",
-            Self::PeerBall => "peer-ball",
-            Self::Flag => "flag",
+    pub fn builtin(name: &str) -> Option<Self> {
+        scene::builtin(name).map(|scene| Self {
+            name: name.to_string(),
+            scene,
+        })
+    }
+
+    /// The seed's drape, the default scene.
+    #[must_use]
+    pub fn drape() -> Self {
+        Self::builtin("drape").expect("drape is built in")
+    }
+
+    /// Every built-in scene, in menu order.
+    #[must_use]
+    pub fn all() -> Vec<Self> {
+        scene::BUILTIN
+            .iter()
+            .filter_map(|(name, _)| Self::builtin(name))
+            .collect()
+    }
+
+    /// The name: a built-in scene's name or the file it came from.
+    #[must_use]
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The scene description as loaded.
+    #[must_use]
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// The scene's own resolution, rows (the resolution slider's start).
+    #[must_use]
+    pub fn resolution(&self) -> usize {
+        self.scene.cloth.resolution[0] as usize
+    }
+
+    /// The scene's own integrator.
+    #[must_use]
+    pub fn integrator(&self) -> Integrator {
+        self.scene.integrator()
+    }
+
+    /// Height of a floor drawn for looks when the scene has no ground plane, m: half a metre
+    /// below the lowest collider or cloth point.
+    #[must_use]
+    pub fn display_floor(&self) -> f32 {
+        let s = &self.scene;
+        if let Some(plane) = s.colliders.iter().find(|c| {
+            c.kind == ColliderKind::Plane
+                && c.normal
+                    .is_some_and(|n| n[1] > 0.9 * Vec3::from(n).length())
+        }) {
+            return plane.point.map_or(0.0, |p| p[1]);
+        }
+        let cloth_low = s.cloth.origin[1] - 0.5 * s.cloth.size.map_or(1.0, |w| w[1].max(w[0]));
+        let lowest = s
+            .colliders
+            .iter()
+            .map(|c| match c.kind {
+                ColliderKind::Sphere => c.center.map_or(0.0, |p| p[1]) - c.radius.unwrap_or(0.0),
+                ColliderKind::Capsule => {
+                    c.a.map_or(0.0, |p| p[1]).min(c.b.map_or(0.0, |p| p[1]))
+                        - c.radius.unwrap_or(0.0)
+                }
+                ColliderKind::Box => {
+                    let h = c.half_extents.map_or(0.0, |h| Vec3::from(h).length());
+                    c.center.map_or(0.0, |p| p[1]) - h
+                }
+                ColliderKind::Plane => 0.0,
+            })
+            .fold(cloth_low, f32::min);
+        lowest - 0.5
+    }
+
+    /// A good point for the camera to look at, and the distance to look from: the scene
+    /// file's `[camera]` when it has one.
+    #[must_use]
+    pub fn focus(&self) -> (Vec3, f32) {
+        match self.name.as_str() {
+            // Hand-tuned framings of the main scenes (the reference image uses the drape's).
+            "drape" => (Vec3::new(0.0, -0.05, 0.0), 1.9),
+            "hanging" => (Vec3::new(0.0, 0.95, 0.0), 2.4),
+            "peer-ball" => (Vec3::new(0.0, 0.0, 0.0), 2.4),
+            "flag" => (Vec3::new(0.75, 1.1, 0.0), 3.0),
+            _ => match &self.scene.camera {
+                Some(c) => {
+                    let (eye, target) = (Vec3::from(c.eye), Vec3::from(c.target));
+                    (target, eye.distance(target).max(0.1))
+                }
+                None => (Vec3::from(self.scene.cloth.origin), 2.5),
+            },
         }
     }
 
-    /// The scene called `name`, if any.
+    /// The scene as it will be built with `rows` rows (columns in proportion) and
+    /// `integrator`. The file's own substeps are kept when neither changes; otherwise they
+    /// are chosen again for the integrator ("auto").
     #[must_use]
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|s| s.name() == name)
-    }
-
-    /// The names of all scenes, comma separated (for messages).
-    #[must_use]
-    pub fn names() -> String {
-        Self::ALL.map(Self::name).join(", ")
-    }
-
-    /// One line describing the scene.
-    #[must_use]
-    pub fn description(self) -> &'static str {
-        match self {
-            Self::Drape => "a 1.2 m cloth dropped onto a ball on the ground",
-            Self::Hanging => "a 1 m curtain hanging from its two top corners",
-            Self::PeerBall => "the peer benchmark: a stiff cloth on a frictionless ball",
-            Self::Flag => "a flag pinned along its left edge in gusty wind",
+    pub fn effective(&self, rows: usize, integrator: Integrator) -> Scene {
+        let mut s = self.scene.clone();
+        let [r0, c0] = s.cloth.resolution;
+        let rows = u32::try_from(rows).unwrap_or(u32::MAX);
+        if rows != r0 {
+            let cols = (u64::from(rows) * u64::from(c0) + u64::from(r0) / 2) / u64::from(r0);
+            s.cloth.resolution = [rows, u32::try_from(cols.max(2)).unwrap_or(u32::MAX)];
+            if let Some(sp) = s.cloth.spacing {
+                // keep the cloth's size
+                let scale = (r0 - 1) as f32 / (rows.max(2) - 1) as f32;
+                s.cloth.spacing = Some([sp[0] * scale, sp[1] * scale]);
+            }
         }
-    }
-
-    /// Height of a floor drawn for looks when the scene has no plane collider, m.
-    #[must_use]
-    pub fn display_floor(self) -> f32 {
-        match self {
-            Self::Drape => -0.3,
-            Self::Hanging | Self::Flag => 0.0,
-            Self::PeerBall => -0.8,
+        if integrator != s.integrator() || rows != r0 {
+            s.solver.kind = integrator.name().into();
+            s.solver.substeps = SubstepsDesc::default();
         }
+        s
     }
 
-    /// A good point for the camera to look at, and the distance to look from.
-    #[must_use]
-    pub fn focus(self) -> (Vec3, f32) {
-        match self {
-            Self::Drape => (Vec3::new(0.0, -0.05, 0.0), 1.9),
-            Self::Hanging => (Vec3::new(0.0, 0.95, 0.0), 2.4),
-            Self::PeerBall => (Vec3::new(0.0, 0.0, 0.0), 2.4),
-            Self::Flag => (Vec3::new(0.3, 1.2, 0.0), 3.0),
-        }
-    }
-
-    /// Builds the scene with an `n × n` grid.
+    /// Builds the scene with `rows` rows and `integrator` (see [`SceneKind::effective`]).
     ///
     /// # Errors
     /// The simulator's error for an invalid resolution or configuration.
-    pub fn build(self, n: usize, integrator: Integrator) -> cloth_core::Result<Simulation> {
-        match self {
-            Self::Drape => presets::drape(n, integrator),
-            Self::Hanging => presets::hanging(n, integrator),
-            Self::PeerBall => presets::peer_ball(n),
-            Self::Flag => flag(n, integrator),
-        }
+    pub fn build(&self, rows: usize, integrator: Integrator) -> cloth_core::Result<Simulation> {
+        let scene = self.effective(rows, integrator);
+        let scene = Scene::from_toml(&scene.to_toml(), self.name())?;
+        scene.build()
     }
 }
 
 impl std::fmt::Display for SceneKind {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
+        f.write_str(&self.name)
     }
-}
-
-/// A 1.6 m × 1 m flag (`n` rows, proportionally more columns), 0.15 kg/m², pinned along its left
-/// edge with its top at 1.7 m, in a 4 m/s wind along +x (slightly towards +z) with default
-/// gusts. Substeps come from [`presets::stable_substeps`].
-///
-/// # Errors
-/// The simulator's error for an invalid resolution.
-pub fn flag(n: usize, integrator: Integrator) -> cloth_core::Result<Simulation> {
-    let cols = (n * 8).div_ceil(5).max(2);
-    let cloth = GridBuilder::new(n, cols)
-        .size(1.6, 1.0)
-        .orientation(Orientation::Vertical)
-        .origin(Vec3::new(0.0, 1.2, 0.0))
-        .mass(Mass::ArealDensity(0.15))
-        .pin_edge(Edge::Left)
-        .build()?;
-    let mut config = SimConfig {
-        integrator,
-        damping: 5e-4,
-        material: Material::isotropic(
-            SpringParams::new(400.0, 0.02),
-            SpringParams::new(80.0, 0.01),
-            SpringParams::new(8.0, 0.004),
-        ),
-        ..SimConfig::default()
-    };
-    config.air.wind = Vec3::new(4.0, 0.0, 1.0);
-    config.air.gust = Some(Gust::default());
-    let min_mass = cloth.particles.min_mass();
-    config.substeps = presets::stable_substeps(&config, min_mass);
-    Simulation::new(cloth, config)
 }
 
 #[cfg(test)]
@@ -136,18 +171,34 @@ mod tests {
     use super::*;
 
     #[test]
-    fn names_round_trip() {
-        for s in SceneKind::ALL {
-            assert_eq!(SceneKind::from_name(s.name()), Some(s));
+    fn every_builtin_scene_is_in_the_menu_and_builds_small() {
+        let all = SceneKind::all();
+        assert!(all.len() >= 10);
+        for s in all {
+            let mut sim = s.build(6, s.integrator()).expect("builds");
+            sim.step().expect("steps");
         }
-        assert_eq!(SceneKind::from_name("nope"), None);
-        assert_eq!(SceneKind::names(), "drape, hanging, peer-ball, flag");
+    }
+
+    #[test]
+    fn the_files_own_settings_are_kept_unless_changed() {
+        let peer = SceneKind::builtin("peer-ball").expect("peer");
+        let same = peer.effective(128, Integrator::SymplecticEuler);
+        assert_eq!(same, *peer.scene());
+        let other = peer.effective(32, Integrator::Xpbd);
+        assert_eq!(other.cloth.resolution, [32, 32]);
+        assert_eq!(other.solver.kind, "xpbd");
+        // the cloth keeps its 1 m side
+        let sp = other.cloth.spacing.expect("spacing");
+        assert!((sp[0] * 31.0 - 0.0078125 * 127.0).abs() < 1e-6);
     }
 
     #[test]
     fn flag_is_pinned_on_the_left_and_flies_downwind() {
-        let mut sim = flag(10, Integrator::SymplecticEuler).unwrap();
+        let flag = SceneKind::builtin("flag").expect("flag");
+        let mut sim = flag.build(10, Integrator::SymplecticEuler).unwrap();
         let (rows, cols) = sim.grid_size();
+        assert_eq!((rows, cols), (10, 15));
         for r in 0..rows {
             assert!(sim.particles().is_pinned(r * cols));
             assert!(!sim.particles().is_pinned(r * cols + cols - 1));
@@ -157,10 +208,17 @@ mod tests {
             sim.step().unwrap();
         }
         assert!(sim.particles().position.iter().all(|p| p.is_finite()));
-        // the free edge never gets upwind of the pole
         assert!(
             sim.particles().center_of_mass().x > x0 - 0.8,
             "flag blew upwind"
         );
+    }
+
+    #[test]
+    fn bad_files_are_named() {
+        let err = SceneKind::load("/no/such.toml", &[])
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("/no/such.toml"), "{err}");
     }
 }

@@ -24,12 +24,14 @@ pub enum Action {
     /// Build a new simulation.
     Rebuild {
         /// The scene.
-        scene: SceneKind,
+        scene: Box<SceneKind>,
         /// Grid resolution.
         resolution: usize,
         /// The integrator.
         integrator: Integrator,
     },
+    /// Write the current settings as a scene file that reproduces them.
+    Save(std::path::PathBuf),
     /// Replace the simulation's parameters.
     Config(SimConfig),
     /// Set every collider's friction.
@@ -82,6 +84,8 @@ pub struct Panel {
     pub resolution: usize,
     /// Integrator to build with.
     pub integrator: Integrator,
+    /// Where "save scene" writes.
+    pub save_path: String,
     /// Whether the panel is shown.
     pub visible: bool,
     /// Width the panel took in the last frame, points (0 when hidden).
@@ -96,6 +100,7 @@ impl Panel {
             scene,
             resolution,
             integrator,
+            save_path: "my-scene.toml".into(),
             visible: true,
             width: 0.0,
         }
@@ -158,8 +163,9 @@ impl Panel {
             egui::ComboBox::from_label("scene")
                 .selected_text(self.scene.name())
                 .show_ui(ui, |ui| {
-                    for s in SceneKind::ALL {
-                        ui.selectable_value(&mut self.scene, s, s.name());
+                    for s in SceneKind::all() {
+                        let label = s.name().to_string();
+                        ui.selectable_value(&mut self.scene, s, label);
                     }
                 });
             egui::ComboBox::from_label("integrator")
@@ -172,7 +178,7 @@ impl Panel {
             ui.add(egui::Slider::new(&mut self.resolution, 4..=160).text("resolution"));
             if ui.button("rebuild").clicked() {
                 actions.push(Action::Rebuild {
-                    scene: self.scene,
+                    scene: Box::new(self.scene.clone()),
                     resolution: self.resolution,
                     integrator: self.integrator,
                 });
@@ -180,6 +186,18 @@ impl Panel {
         })
         .header_response
         .on_hover_text("scene, integrator and resolution take effect on rebuild");
+        ui.horizontal(|ui| {
+            ui.text_edit_singleline(&mut self.save_path);
+            if ui
+                .button("save scene")
+                .on_hover_text(
+                    "write the current settings as a scene file (`cloth view FILE` opens it)",
+                )
+                .clicked()
+            {
+                actions.push(Action::Save(self.save_path.clone().into()));
+            }
+        });
 
         let mut cfg = *config;
         ui.collapsing("time", |ui| {

@@ -35,7 +35,7 @@ fn gpu() -> Option<Gpu> {
 }
 
 fn landed_drape() -> Simulation {
-    let mut sim = SceneKind::Drape
+    let mut sim = SceneKind::drape()
         .build(RESOLUTION, Integrator::SymplecticEuler)
         .unwrap();
     for _ in 0..FRAMES {
@@ -72,13 +72,13 @@ fn the_drape_is_where_the_camera_says_and_matches_the_reference() {
     let Some(gpu) = gpu() else { return };
     let sim = landed_drape();
     let mut off = Offscreen::new(gpu, SIZE);
-    let camera = cloth_view::default_camera(SceneKind::Drape);
+    let camera = cloth_view::default_camera(&SceneKind::drape());
     let projection = off.projection();
     let img = off
         .render(
             &sim,
             &camera,
-            &cloth_view::default_options(SceneKind::Drape),
+            &cloth_view::default_options(&SceneKind::drape()),
         )
         .unwrap();
     let actual = save_actual(&img, "drape.png");
@@ -156,19 +156,19 @@ fn the_drape_is_where_the_camera_says_and_matches_the_reference() {
 fn lit_and_unlit_sides_of_the_ball_differ() {
     let Some(gpu) = gpu() else { return };
     // the ball alone (cloth surface off) in the initial drape scene
-    let sim = SceneKind::Drape
+    let sim = SceneKind::drape()
         .build(RESOLUTION, Integrator::SymplecticEuler)
         .unwrap();
     let Shape::Sphere { center, radius } = sim.colliders()[0].shape else {
         panic!("the drape's first collider is its ball");
     };
     let mut off = Offscreen::new(gpu, SIZE);
-    let camera = cloth_view::default_camera(SceneKind::Drape);
+    let camera = cloth_view::default_camera(&SceneKind::drape());
     let projection = off.projection();
     let options = cloth_view::RenderOptions {
         surface: false,
         pins: false,
-        ..cloth_view::default_options(SceneKind::Drape)
+        ..cloth_view::default_options(&SceneKind::drape())
     };
     let img = off.render(&sim, &camera, &options).unwrap();
     let actual = save_actual(&img, "ball.png");
