@@ -33,7 +33,7 @@ fn report(path: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(path).expect("report")).expect("report is JSON")
 }
 
-/// Every built-in scene runs headless for 1 s of simulated time with status "ok".
+/// Every built-in scene runs headless for 2 s of simulated time with status "ok".
 #[test]
 fn every_builtin_scene_runs_ok() {
     let (code, list, _) = cloth(&["scenes"]);
@@ -53,7 +53,7 @@ fn every_builtin_scene_runs_ok() {
             "sim",
             name,
             "--seconds",
-            "1",
+            "2",
             "--table-every",
             "0",
             "--report",
