@@ -60,7 +60,7 @@ enum Command {
         #[command(flatten)]
         scene: SceneArgs,
         /// Frames to step before rendering.
-        #[arg(long, value_name = "N", default_value = "120", value_parser = parse_frames)]
+        #[arg(long, value_name = "N", default_value = "120", value_parser = sim_cmd::parse_positive_u64)]
         frames: u64,
         /// The PNG file to write.
         #[arg(long, value_name = "FILE")]
@@ -80,7 +80,7 @@ enum Command {
         #[command(flatten)]
         scene: SceneArgs,
         /// Quit by itself after this many frames (for scripted runs and tests).
-        #[arg(long, value_name = "N", value_parser = parse_frames)]
+        #[arg(long, value_name = "N", value_parser = sim_cmd::parse_positive_u64)]
         frames: Option<u64>,
         /// Initial window size.
         #[arg(long, value_name = "WxH", default_value = "1280x800", value_parser = parse_size)]
@@ -97,10 +97,10 @@ struct SceneArgs {
     #[arg(value_name = "SCENE", default_value = "drape")]
     scene: String,
     /// Particles along the cloth's rows (columns in proportion). Default: the scene's.
-    #[arg(long, value_name = "N", value_parser = parse_resolution)]
+    #[arg(long, value_name = "N", value_parser = sim_cmd::parse_resolution)]
     resolution: Option<usize>,
     /// The time integrator. Default: the scene's.
-    #[arg(long, value_name = "NAME", value_parser = parse_integrator)]
+    #[arg(long, value_name = "NAME", value_parser = sim_cmd::parse_integrator)]
     integrator: Option<Integrator>,
     #[arg(
         long = "set",
@@ -129,30 +129,6 @@ impl SceneArgs {
             scene,
         })
     }
-}
-
-fn parse_frames(s: &str) -> Result<u64, String> {
-    s.parse()
-        .ok()
-        .filter(|&f| f >= 1)
-        .ok_or_else(|| "allowed an integer >= 1".into())
-}
-
-fn parse_resolution(s: &str) -> Result<usize, String> {
-    s.parse()
-        .ok()
-        .filter(|r| (2..=8192).contains(r))
-        .ok_or_else(|| "allowed an integer in 2 ..= 8192".into())
-}
-
-fn parse_integrator(s: &str) -> Result<Integrator, String> {
-    Integrator::ALL
-        .into_iter()
-        .find(|i| i.name() == s)
-        .ok_or_else(|| {
-            let names: Vec<_> = Integrator::ALL.iter().map(|i| i.name()).collect();
-            format!("allowed {}", names.join(", "))
-        })
 }
 
 fn parse_size(s: &str) -> Result<[u32; 2], String> {

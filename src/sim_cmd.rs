@@ -79,10 +79,10 @@ pub struct SimArgs {
         value_parser = parse_resolution,
         help = "Shorthand for --set cloth.resolution=[N,N]"
     )]
-    pub resolution: Option<u32>,
+    pub resolution: Option<usize>,
     /// Shorthand for --set solver.kind="NAME".
     #[arg(long, value_name = "NAME", value_parser = parse_integrator)]
-    pub integrator: Option<String>,
+    pub integrator: Option<cloth_core::Integrator>,
     /// Save a checkpoint every N frames (into --out, or the current folder), atomically.
     #[arg(long, value_name = "N", value_parser = parse_positive_u64)]
     pub checkpoint_every: Option<u64>,
@@ -116,7 +116,8 @@ pub struct CheckArgs {
     pub set: Vec<String>,
 }
 
-fn parse_positive_u64(s: &str) -> Result<u64, String> {
+/// A count >= 1.
+pub(crate) fn parse_positive_u64(s: &str) -> Result<u64, String> {
     s.parse()
         .ok()
         .filter(|&f| f >= 1)
@@ -137,24 +138,23 @@ fn parse_threads(s: &str) -> Result<usize, String> {
         .ok_or_else(|| "allowed an integer in 1 ..= 256".into())
 }
 
-fn parse_resolution(s: &str) -> Result<u32, String> {
+/// A grid side: 2 ..= 8192 particles.
+pub(crate) fn parse_resolution(s: &str) -> Result<usize, String> {
     s.parse()
         .ok()
         .filter(|r| (2..=8192).contains(r))
         .ok_or_else(|| "allowed an integer in 2 ..= 8192".into())
 }
 
-fn parse_integrator(s: &str) -> Result<String, String> {
-    match cloth_core::Integrator::from_name(s) {
-        Some(i) => Ok(i.name().into()),
-        None => {
-            let names: Vec<_> = cloth_core::Integrator::ALL
-                .iter()
-                .map(|i| i.name())
-                .collect();
-            Err(format!("allowed {}", names.join(", ")))
-        }
-    }
+/// An integrator by name.
+pub(crate) fn parse_integrator(s: &str) -> Result<cloth_core::Integrator, String> {
+    cloth_core::Integrator::from_name(s).ok_or_else(|| {
+        let names: Vec<_> = cloth_core::Integrator::ALL
+            .iter()
+            .map(|i| i.name())
+            .collect();
+        format!("allowed {}", names.join(", "))
+    })
 }
 
 /// `cloth scenes`.
@@ -383,8 +383,8 @@ fn run(args: &SimArgs) -> Result<ExitCode> {
     if let Some(n) = args.resolution {
         overrides.push(format!("cloth.resolution=[{n},{n}]"));
     }
-    if let Some(name) = &args.integrator {
-        overrides.push(format!("solver.kind=\"{name}\""));
+    if let Some(integrator) = args.integrator {
+        overrides.push(format!("solver.kind=\"{}\"", integrator.name()));
     }
     let checkpoint: Option<Checkpoint> = match &args.resume {
         Some(path) => {
