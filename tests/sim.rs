@@ -427,10 +427,16 @@ fn interrupted_runs_write_their_report() {
             "--report",
             s(&rep),
         ])
-        .stdout(std::process::Stdio::null())
+        .stdout(std::process::Stdio::piped())
         .spawn()
         .expect("spawn");
-    std::thread::sleep(std::time::Duration::from_millis(1500));
+    // The summary line is printed once the Ctrl-C handler is installed: wait for it, then let
+    // the run simulate a little.
+    let mut stdout = std::io::BufReader::new(child.stdout.take().expect("stdout"));
+    let mut first = String::new();
+    std::io::BufRead::read_line(&mut stdout, &mut first).expect("summary line");
+    assert!(first.starts_with("scene peer-ball"), "{first}");
+    std::thread::sleep(std::time::Duration::from_millis(1000));
     let killed = Command::new("kill")
         .args(["-INT", &child.id().to_string()])
         .status()
