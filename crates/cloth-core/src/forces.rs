@@ -3,6 +3,7 @@
 use glam::Vec3;
 
 use crate::config::SimConfig;
+use crate::particles::Particles;
 use crate::topology::{SpringKind, Topology};
 
 /// Accumulates the total force on every particle (pinned ones included, so that pin reactions
@@ -16,12 +17,11 @@ use crate::topology::{SpringKind, Topology};
 pub(crate) fn accumulate(
     config: &SimConfig,
     topology: &Topology,
-    position: &[Vec3],
-    velocity: &[Vec3],
-    mass: &[f32],
+    particles: &Particles,
     wind: Vec3,
     force: &mut [Vec3],
 ) {
+    let (position, velocity, mass) = (&particles.position, &particles.velocity, &particles.mass);
     let sw = config.forces;
     let gravity = if sw.gravity {
         config.gravity

@@ -20,14 +20,13 @@ pub fn stable_substeps(config: &SimConfig, min_mass: f32) -> u32 {
 
 /// Chooses the substeps (and XPBD's tethers) of a preset for `config.integrator`: the explicit
 /// integrators get [`stable_substeps`]; implicit Euler one substep per 1/60 s step (it is
-/// stable at any step); XPBD 20 substeps of one sweep each, with tethers to the pins.
+/// stable at any step); XPBD 20 substeps per 1/60 s.
 pub fn tune_for_integrator(config: &mut SimConfig, min_mass: f32) {
     config.substeps = match config.integrator {
         Integrator::ImplicitEuler => (config.dt * 60.0).ceil().max(1.0) as u32,
         Integrator::Xpbd => (config.dt * 60.0 * 20.0).ceil().max(1.0) as u32,
         _ => stable_substeps(config, min_mass),
     };
-    config.xpbd.tethers = true;
 }
 
 /// A built-in scene with its resolution set to `n × n` and its integrator to `integrator`

@@ -777,6 +777,13 @@ impl Scene {
         Self::from_toml(&text, file)
     }
 
+    /// Checks a scene built or edited in code exactly as [`Scene::from_toml`] checks a file;
+    /// `file` names it in the error (which has no line or column).
+    pub fn validate(&self, file: &str) -> Result<()> {
+        self.check()
+            .map_err(|bad| scene_error(file, None, &bad.key, bad.message))
+    }
+
     /// The scene as TOML text; [`Scene::from_toml`] of it gives the same scene.
     #[must_use]
     pub fn to_toml(&self) -> String {

@@ -79,6 +79,24 @@ pub struct Spring {
     pub rest_length: f32,
 }
 
+/// Area-weighted vertex normals of a triangle mesh, unit length, into `out` (resized). A
+/// vertex in no triangle (or only in degenerate ones) gets +Y, so normals are always usable.
+pub fn vertex_normals(position: &[glam::Vec3], triangles: &[[u32; 3]], out: &mut Vec<glam::Vec3>) {
+    out.clear();
+    out.resize(position.len(), glam::Vec3::ZERO);
+    for &[a, b, c] in triangles {
+        let (a, b, c) = (a as usize, b as usize, c as usize);
+        // The cross product's length is twice the area: area weighting for free.
+        let n = (position[b] - position[a]).cross(position[c] - position[a]);
+        out[a] += n;
+        out[b] += n;
+        out[c] += n;
+    }
+    for n in out.iter_mut() {
+        *n = n.normalize_or(glam::Vec3::Y);
+    }
+}
+
 /// The springs and triangles of a cloth.
 ///
 /// Springs are stored in one flat `Vec`, grouped by [`SpringKind`] in the order of
@@ -132,22 +150,9 @@ impl Topology {
             .sum()
     }
 
-    /// Area-weighted vertex normals of the surface at `position`, unit length (zero for a
-    /// particle whose triangles are all degenerate), into `out` (resized).
+    /// Area-weighted vertex normals of the surface at `position` (see [`vertex_normals`]).
     pub fn vertex_normals(&self, position: &[glam::Vec3], out: &mut Vec<glam::Vec3>) {
-        out.clear();
-        out.resize(position.len(), glam::Vec3::ZERO);
-        for &[a, b, c] in &self.triangles {
-            let (a, b, c) = (a as usize, b as usize, c as usize);
-            // The cross product's length is twice the area: area weighting for free.
-            let n = (position[b] - position[a]).cross(position[c] - position[a]);
-            out[a] += n;
-            out[b] += n;
-            out[c] += n;
-        }
-        for n in out.iter_mut() {
-            *n = n.normalize_or_zero();
-        }
+        vertex_normals(position, &self.triangles, out);
     }
 
     /// Triangles of the surface, two per grid cell, counter-clockwise around the cloth's

@@ -155,7 +155,7 @@ impl SceneKind {
     /// The simulator's error for an invalid resolution or configuration.
     pub fn build(&self, rows: usize, integrator: Integrator) -> cloth_core::Result<Simulation> {
         let scene = self.effective(rows, integrator);
-        let scene = Scene::from_toml(&scene.to_toml(), self.name())?;
+        scene.validate(self.name())?;
         scene.build()
     }
 }

@@ -10,16 +10,7 @@ use crate::collide::resolve_contacts;
 use crate::forces::accumulate;
 
 fn forces(ctx: &SubstepCtx<'_>, force: &mut [Vec3]) {
-    let p = &*ctx.particles;
-    accumulate(
-        ctx.config,
-        ctx.topology,
-        &p.position,
-        &p.velocity,
-        &p.mass,
-        ctx.wind,
-        force,
-    );
+    accumulate(ctx.config, ctx.topology, ctx.particles, ctx.wind, force);
 }
 
 /// x ← x + h·v; v ← v + h·F/m(x, v) (both from the old state); contacts.

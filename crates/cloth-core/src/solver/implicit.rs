@@ -63,7 +63,6 @@ pub(crate) struct CgStats {
 /// Scratch of the implicit solver, sized once per cloth.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct ImplicitScratch {
-    force: Vec<Vec3>,
     /// Per spring: S = h·c·d·dᵀ + h²·K.
     block: Vec<Mat3>,
     /// Inverse of each particle's diagonal block (the preconditioner).
@@ -98,21 +97,17 @@ impl ImplicitScratch {
 }
 
 /// One linearised backward-Euler substep.
-pub(super) fn substep(ctx: &mut SubstepCtx<'_>, sc: &mut ImplicitScratch, cg: &mut CgStats) {
+pub(super) fn substep(
+    ctx: &mut SubstepCtx<'_>,
+    force: &mut [Vec3],
+    sc: &mut ImplicitScratch,
+    cg: &mut CgStats,
+) {
     let n = ctx.particles.len();
     let h = ctx.h;
     let cfg = ctx.config;
     let settings = cfg.implicit;
-    sc.force.resize(n, Vec3::ZERO);
-    accumulate(
-        cfg,
-        ctx.topology,
-        &ctx.particles.position,
-        &ctx.particles.velocity,
-        &ctx.particles.mass,
-        ctx.wind,
-        &mut sc.force,
-    );
+    accumulate(cfg, ctx.topology, ctx.particles, ctx.wind, force);
 
     // Right-hand side b = h·f + h²·(∂f/∂x)·v, the spring blocks S, the preconditioner.
     let diag = if cfg.forces.damping {
@@ -123,7 +118,7 @@ pub(super) fn substep(ctx: &mut SubstepCtx<'_>, sc: &mut ImplicitScratch, cg: &m
     sc.block.clear();
     sc.block.reserve(ctx.topology.springs().len());
     resize(&mut sc.rhs, n);
-    for (b, &f) in sc.rhs.iter_mut().zip(&sc.force) {
+    for (b, &f) in sc.rhs.iter_mut().zip(force.iter()) {
         *b = h * f;
     }
     sc.precond.clear();

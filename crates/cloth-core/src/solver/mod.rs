@@ -105,14 +105,14 @@ impl Solver {
             Integrator::Verlet => explicit::position_verlet(ctx, &mut self.force),
             Integrator::ImplicitEuler => {
                 let mut cg = implicit::CgStats::default();
-                implicit::substep(ctx, &mut self.implicit, &mut cg);
+                implicit::substep(ctx, &mut self.force, &mut self.implicit, &mut cg);
                 self.stats.iterations = self.stats.iterations.max(cg.iterations);
                 self.stats.residual = self.stats.residual.max(cg.residual);
                 self.stats.converged &= cg.converged;
             }
             Integrator::Xpbd => {
                 self.stats.iterations = ctx.config.xpbd.iterations;
-                xpbd::substep(ctx, &mut self.xpbd, &mut self.hash);
+                xpbd::substep(ctx, &mut self.force, &mut self.xpbd, &mut self.hash);
                 return;
             }
         }
@@ -140,15 +140,7 @@ impl Solver {
         wind: Vec3,
     ) -> &[Vec3] {
         self.force.resize(particles.len(), Vec3::ZERO);
-        crate::forces::accumulate(
-            config,
-            topology,
-            &particles.position,
-            &particles.velocity,
-            &particles.mass,
-            wind,
-            &mut self.force,
-        );
+        crate::forces::accumulate(config, topology, particles, wind, &mut self.force);
         &self.force
     }
 }

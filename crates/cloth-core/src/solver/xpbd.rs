@@ -34,7 +34,6 @@ pub(crate) struct Tether {
 pub(crate) struct XpbdScratch {
     prev: Vec<Vec3>,
     lambda: Vec<f32>,
-    force: Vec<Vec3>,
     /// Tethers, rebuilt when the set of pinned particles changes.
     tethers: Vec<Tether>,
     /// The pinned set the tethers were built for.
@@ -86,28 +85,19 @@ impl XpbdScratch {
 /// One XPBD substep.
 pub(super) fn substep(
     ctx: &mut SubstepCtx<'_>,
+    force: &mut [Vec3],
     sc: &mut XpbdScratch,
     hash: &mut crate::collide::self_collision::SpatialHash,
 ) {
-    let n = ctx.particles.len();
     let h = ctx.h;
     let cfg = ctx.config;
     let settings = cfg.xpbd;
 
     // 1. predict, with external forces (gravity, damping, air) only.
-    sc.force.resize(n, Vec3::ZERO);
     let mut ext = *cfg;
     ext.forces.springs = false;
     ext.forces.dashpots = false;
-    crate::forces::accumulate(
-        &ext,
-        ctx.topology,
-        &ctx.particles.position,
-        &ctx.particles.velocity,
-        &ctx.particles.mass,
-        ctx.wind,
-        &mut sc.force,
-    );
+    crate::forces::accumulate(&ext, ctx.topology, ctx.particles, ctx.wind, force);
     sc.prev.clone_from(&ctx.particles.position);
     {
         let p = &mut *ctx.particles;
@@ -116,7 +106,7 @@ pub(super) fn substep(
             .iter_mut()
             .zip(p.velocity.iter_mut())
             .zip(&p.inv_mass)
-            .zip(&sc.force)
+            .zip(force.iter())
         {
             *v += (h * w) * f;
             *x += h * *v;

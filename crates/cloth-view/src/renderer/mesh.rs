@@ -57,27 +57,7 @@ impl LineVertex {
     };
 }
 
-/// Area-weighted vertex normals of a triangle mesh, written into `normals` (resized).
-/// Vertices in no triangle get +Y.
-pub fn vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]], normals: &mut Vec<Vec3>) {
-    normals.clear();
-    normals.resize(positions.len(), Vec3::ZERO);
-    for &[a, b, c] in triangles {
-        let (pa, pb, pc) = (
-            positions[a as usize],
-            positions[b as usize],
-            positions[c as usize],
-        );
-        // the cross product's length is twice the area: larger triangles weigh more
-        let n = (pb - pa).cross(pc - pa);
-        normals[a as usize] += n;
-        normals[b as usize] += n;
-        normals[c as usize] += n;
-    }
-    for n in normals.iter_mut() {
-        *n = n.normalize_or(Vec3::Y);
-    }
-}
+pub use cloth_core::topology::vertex_normals;
 
 /// Appends the cloth's vertices (a `rows × cols` grid) to `out`, UVs running 0..1 across it.
 pub fn cloth_vertices(
