@@ -365,6 +365,10 @@ pub struct SimConfig {
     /// Cloth–cloth contact (particles keep a thickness from each other). `None` (the
     /// default) is off.
     pub self_collision: Option<crate::collide::self_collision::SelfCollision>,
+    /// Continuous collision against the colliders (see [`crate::collide::ccd`]): after each
+    /// substep, a particle whose path went through a collider is put back on the side it came
+    /// from. Default `true`.
+    pub continuous_collision: bool,
 }
 
 impl Default for SimConfig {
@@ -383,6 +387,7 @@ impl Default for SimConfig {
             implicit: ImplicitSettings::default(),
             xpbd: XpbdSettings::default(),
             self_collision: None,
+            continuous_collision: true,
         }
     }
 }

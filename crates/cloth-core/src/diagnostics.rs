@@ -29,6 +29,9 @@ pub struct StepStats {
     pub max_penetration: f32,
     /// Particle–collider contacts resolved in the step's last substep.
     pub contacts: u32,
+    /// Particles put back on the near side of a collider by continuous collision over the
+    /// whole step (paths that went through a collider within one substep).
+    pub ccd_corrections: u32,
     /// What the iterative solver did, for the integrators that have one.
     pub solver: SolverStats,
 }

@@ -507,6 +507,13 @@ pub struct SolverDesc {
     /// Cloth–cloth contact `{ thickness, friction }`; off when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub self_collision: Option<SelfCollisionDesc>,
+    /// Continuous collision against the colliders. Default `true`.
+    #[serde(default = "d_true")]
+    pub continuous_collision: bool,
+}
+
+fn d_true() -> bool {
+    true
 }
 
 /// `[solver.self_collision]`.
@@ -546,6 +553,7 @@ impl Default for SolverDesc {
             xpbd: XpbdDesc::default(),
             limits: LimitsDesc::default(),
             self_collision: None,
+            continuous_collision: true,
         }
     }
 }
@@ -1100,6 +1108,7 @@ impl Scene {
                 thickness: c.thickness,
                 friction: c.friction,
             }),
+            continuous_collision: s.continuous_collision,
         };
         match s.substeps {
             SubstepsDesc::Count(n) => config.substeps = n,
@@ -1588,6 +1597,7 @@ impl Scene {
                 thickness: s.thickness,
                 friction: s.friction,
             }),
+            continuous_collision: c.continuous_collision,
         };
         for (desc, col) in scene.colliders.iter_mut().zip(sim.colliders()) {
             desc.thickness = col.thickness;

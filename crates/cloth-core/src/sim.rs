@@ -100,7 +100,7 @@ impl Simulation {
                 .map(|v| v.to_array())
                 .collect(),
             inv_mass: self.particles.inv_mass.clone(),
-            collider_shapes: self.colliders.iter().map(|c| c.shape).collect(),
+            collider_shapes: self.colliders.iter().map(|c| c.shape.clone()).collect(),
         }
     }
 
@@ -161,8 +161,8 @@ impl Simulation {
                 ));
             }
             Collider {
-                shape: *shape,
-                ..*c
+                shape: shape.clone(),
+                ..c.clone()
             }
             .validate(i)?;
         }
@@ -183,7 +183,7 @@ impl Simulation {
         }
         self.particles.inv_mass.clone_from(&state.inv_mass);
         for (c, shape) in self.colliders.iter_mut().zip(&state.collider_shapes) {
-            c.shape = *shape;
+            c.shape = shape.clone();
         }
         self.pin_target.fill(None);
         self.refresh_stats();
@@ -501,6 +501,7 @@ impl Simulation {
         stats.step = self.steps;
         stats.time = self.time;
         stats.contacts = contacts.contacts;
+        stats.ccd_corrections = contacts.ccd;
         stats.solver = self.solver.stats();
         self.stats = stats;
         Ok(stats)

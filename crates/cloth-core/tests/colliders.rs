@@ -89,7 +89,7 @@ fn cloth_drapes_over_box_and_capsule_without_penetration() {
             Integrator::ImplicitEuler,
             Integrator::Xpbd,
         ] {
-            let mut sim = cloth_over(collider, integrator);
+            let mut sim = cloth_over(collider.clone(), integrator);
             let mut worst = 0.0f32;
             for _ in 0..90 {
                 let s = sim.step().unwrap_or_else(|e| panic!("{integrator:?}: {e}"));

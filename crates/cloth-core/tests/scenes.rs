@@ -268,9 +268,9 @@ fn saved_settings_rerun_to_the_same_state() {
     config.integrator = cloth_core::Integrator::Verlet;
     config.substeps = 77;
     live.set_config(config).expect("config");
-    let mut col = live.colliders()[0];
+    let mut col = live.colliders()[0].clone();
     col.friction = cloth_core::Friction::new(0.9, 0.7);
-    live.set_collider(0, col).expect("collider");
+    live.set_collider(0, col.clone()).expect("collider");
     live.pin(5).expect("pin");
 
     let saved = base.with_settings_of(&live);

@@ -485,7 +485,7 @@ impl App {
             },
             Action::Friction(friction) => {
                 for i in 0..world.sim.colliders().len() {
-                    let c = world.sim.colliders()[i].with_friction(friction);
+                    let c = world.sim.colliders()[i].clone().with_friction(friction);
                     if let Err(e) = world.sim.set_collider(i, c) {
                         world.message = Some(e.to_string());
                     }

@@ -1,11 +1,16 @@
 //! Colliders and the contact response shared by the explicit integrators.
 
+pub mod ccd;
+pub mod mesh;
 pub mod self_collision;
+
+use std::sync::Arc;
 
 use glam::{Quat, Vec3};
 
 use crate::error::{ClothError, Result, check};
 use crate::particles::Particles;
+pub use mesh::TriMesh;
 
 /// Coulomb friction coefficients.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -45,7 +50,7 @@ impl Friction {
 }
 
 /// The geometry of a collider, at its current position.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "scene", derive(serde::Serialize, serde::Deserialize))]
 pub enum Shape {
     /// A solid ball.
@@ -78,6 +83,16 @@ pub enum Shape {
         /// Half the side lengths along the box's own axes, m, each `> 0`.
         half_extents: Vec3,
         /// Orientation of the box's axes (unit quaternion).
+        rotation: Quat,
+    },
+    /// A static triangle mesh (shared, with its BVH) placed at a pose: a point `x` of the
+    /// mesh is at `position + rotation · x`.
+    Mesh {
+        /// The mesh, in its own coordinates.
+        mesh: Arc<TriMesh>,
+        /// Where the mesh's origin is, m.
+        position: Vec3,
+        /// Orientation (unit quaternion).
         rotation: Quat,
     },
 }
@@ -137,6 +152,34 @@ impl Shape {
                     (q.max_element(), rotation * n_local)
                 }
             }
+            Shape::Mesh {
+                ref mesh,
+                position,
+                rotation,
+            } => {
+                let (d, n) = mesh.distance(rotation.inverse() * (p - position));
+                (d, rotation * n)
+            }
+        }
+    }
+
+    /// Like [`distance`](Self::distance), but a mesh only looks for surface points within
+    /// `max_distance` (returning `max_distance` when there are none): the cheap query of the
+    /// contact passes. Exact for the analytic shapes.
+    #[must_use]
+    #[inline]
+    pub fn distance_within(&self, p: Vec3, max_distance: f32) -> (f32, Vec3) {
+        match self {
+            Shape::Mesh {
+                mesh,
+                position,
+                rotation,
+            } => {
+                let (d, n) =
+                    mesh.distance_within(rotation.inverse() * (p - *position), max_distance);
+                (d, *rotation * n)
+            }
+            _ => self.distance(p),
         }
     }
 
@@ -146,6 +189,7 @@ impl Shape {
     pub fn pivot(&self) -> Vec3 {
         match *self {
             Shape::Sphere { center, .. } | Shape::Box { center, .. } => center,
+            Shape::Mesh { position, .. } => position,
             Shape::Plane { point, .. } => point,
             Shape::Capsule { a, b, .. } => 0.5 * (a + b),
         }
@@ -154,6 +198,7 @@ impl Shape {
     fn translate(&mut self, by: Vec3) {
         match self {
             Shape::Sphere { center, .. } | Shape::Box { center, .. } => *center += by,
+            Shape::Mesh { position, .. } => *position += by,
             Shape::Plane { point, .. } => *point += by,
             Shape::Capsule { a, b, .. } => {
                 *a += by;
@@ -172,14 +217,20 @@ impl Shape {
                 *a = pivot + turn * (*a - pivot);
                 *b = pivot + turn * (*b - pivot);
             }
-            Shape::Box { rotation, .. } => *rotation = (turn * *rotation).normalize(),
+            Shape::Box { rotation, .. } | Shape::Mesh { rotation, .. } => {
+                *rotation = (turn * *rotation).normalize();
+            }
         }
     }
 }
 
+/// Depth below the contact surface within which the discrete contact passes find mesh
+/// contacts, m (see [`Collider::contact_range`]).
+pub const CONTACT_MARGIN: f32 = 0.05;
+
 /// A kinematic collider: a shape moving with a prescribed velocity, with a contact thickness
 /// and friction.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Collider {
     /// Geometry at the current time.
     pub shape: Shape,
@@ -264,6 +315,26 @@ impl Collider {
         })
     }
 
+    /// A static triangle mesh at `position` turned by `rotation`.
+    #[must_use]
+    pub fn mesh(mesh: Arc<TriMesh>, position: Vec3, rotation: Quat) -> Self {
+        Self::new(Shape::Mesh {
+            mesh,
+            position,
+            rotation,
+        })
+    }
+
+    /// How far from the surface the discrete contact passes look (thickness +
+    /// [`CONTACT_MARGIN`]), m. Only matters for meshes: a particle more than
+    /// [`CONTACT_MARGIN`] inside a mesh is not seen by the discrete pass (continuous
+    /// collision stops particles from getting there).
+    #[inline]
+    #[must_use]
+    pub fn contact_range(&self) -> f32 {
+        self.thickness + CONTACT_MARGIN
+    }
+
     /// Velocity of the collider's surface material at `p`: v + ω × (p − pivot), m/s.
     #[inline]
     #[must_use]
@@ -319,6 +390,19 @@ impl Collider {
                 }
                 *rotation = rotation.normalize();
             }
+            Shape::Mesh {
+                position, rotation, ..
+            } => {
+                check::finite_vec(&name("position"), *position)?;
+                if !rotation.is_finite() || (rotation.length() - 1.0).abs() > 1e-3 {
+                    return Err(ClothError::invalid(
+                        name("rotation"),
+                        *rotation,
+                        "a finite unit quaternion",
+                    ));
+                }
+                *rotation = rotation.normalize();
+            }
         }
         check::finite_vec(&name("velocity"), self.velocity)?;
         check::finite_vec(&name("angular_velocity"), self.angular_velocity)?;
@@ -350,6 +434,8 @@ impl Collider {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(crate) struct ContactStats {
     pub contacts: u32,
+    /// Continuous-collision corrections, summed over the step.
+    pub ccd: u32,
 }
 
 /// Projects every free particle that is inside a collider's contact surface (surface +
@@ -382,7 +468,7 @@ pub(crate) fn resolve_contacts(
             if w == 0.0 {
                 continue;
             }
-            let (dist, n) = collider.shape.distance(*x);
+            let (dist, n) = collider.shape.distance_within(*x, collider.contact_range());
             let phi = dist - collider.thickness;
             if phi >= 0.0 {
                 continue;

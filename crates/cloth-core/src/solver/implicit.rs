@@ -168,7 +168,7 @@ pub(super) fn substep(
         }
         let mut filter = Filter::Free;
         for (ci, col) in ctx.colliders.iter().enumerate() {
-            let (dist, nrm) = col.shape.distance(x[i]);
+            let (dist, nrm) = col.shape.distance_within(x[i], col.contact_range());
             let slack = 0.1 * col.thickness + 1e-5;
             if dist - col.thickness < slack {
                 let vn = (v[i] - col.velocity_at(x[i])).dot(nrm);

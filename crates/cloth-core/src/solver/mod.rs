@@ -78,6 +78,8 @@ pub(crate) struct Solver {
     stats: SolverStats,
     /// Spatial hash of the self-collision pass.
     hash: crate::collide::self_collision::SpatialHash,
+    /// Positions at the start of the substep (for continuous collision).
+    start: Vec<Vec3>,
 }
 
 impl Solver {
@@ -92,13 +94,27 @@ impl Solver {
     }
 
     /// Advances one substep with `integrator`, then (for the force-based integrators) the
-    /// optional strain-limiting pass.
+    /// optional strain-limiting and self-collision passes, then continuous collision against
+    /// the colliders.
     pub fn substep(&mut self, integrator: Integrator, mut ctx: SubstepCtx<'_>) {
         let n = ctx.particles.len();
         if self.force.len() != n {
             self.force.resize(n, Vec3::ZERO);
         }
-        let ctx = &mut ctx;
+        let ccd = ctx.config.continuous_collision && !ctx.colliders.is_empty();
+        if ccd {
+            self.start.clear();
+            self.start.extend_from_slice(&ctx.particles.position);
+        }
+        self.integrate(integrator, &mut ctx);
+        if ccd {
+            ctx.contacts.ccd +=
+                crate::collide::ccd::resolve(ctx.colliders, &self.start, ctx.particles, ctx.h);
+            crate::collide::ccd::project(ctx.colliders, ctx.particles);
+        }
+    }
+
+    fn integrate(&mut self, integrator: Integrator, ctx: &mut SubstepCtx<'_>) {
         match integrator {
             Integrator::ForwardEuler => explicit::forward_euler(ctx, &mut self.force),
             Integrator::SymplecticEuler => explicit::symplectic_euler(ctx, &mut self.force),

@@ -220,7 +220,7 @@ fn solve_contacts(ctx: &mut SubstepCtx<'_>, prev: &[Vec3], h: f32) -> u32 {
             if w == 0.0 {
                 continue;
             }
-            let (dist, nrm) = col.shape.distance(*x);
+            let (dist, nrm) = col.shape.distance_within(*x, col.contact_range());
             let phi = dist - col.thickness;
             if phi >= 0.0 {
                 continue;

@@ -236,6 +236,31 @@ pub fn ground(
     }
 }
 
+/// Appends a triangle-mesh collider at its pose, flat shaded (three vertices per triangle
+/// with the face normal, so hard edges stay sharp).
+pub fn triangle_mesh(
+    mesh: &cloth_core::collide::TriMesh,
+    position: Vec3,
+    rotation: Quat,
+    vertices: &mut Vec<MeshVertex>,
+    indices: &mut Vec<u32>,
+) {
+    for (tri, n) in mesh.triangles().iter().zip(mesh.face_normals()) {
+        let base = vertices.len() as u32;
+        let n = rotation * *n;
+        for (k, &i) in tri.iter().enumerate() {
+            let p = position + rotation * mesh.vertices()[i as usize];
+            vertices.push(MeshVertex {
+                position: p.to_array(),
+                normal: n.to_array(),
+                uv: [(k == 1) as u32 as f32, (k == 2) as u32 as f32],
+                material: material::SPHERE,
+            });
+        }
+        indices.extend_from_slice(&[base, base + 1, base + 2]);
+    }
+}
+
 /// Appends the colliders' meshes; the planes become squares around `around`.
 pub fn colliders(
     colliders: &[Collider],
@@ -245,6 +270,11 @@ pub fn colliders(
 ) {
     for c in colliders {
         match c.shape {
+            Shape::Mesh {
+                ref mesh,
+                position,
+                rotation,
+            } => triangle_mesh(mesh, position, rotation, vertices, indices),
             Shape::Sphere { center, radius } => sphere(center, radius, vertices, indices),
             Shape::Plane { point, normal } => {
                 ground(point, normal, around, 12.0, vertices, indices);

@@ -1,0 +1,176 @@
+//! Continuous collision against the colliders: no particle ends a substep on the wrong side
+//! of a thin or fast collider.
+//!
+//! The discrete contact passes of the integrators look only at where a particle ends a
+//! substep. A particle that moves further than a collider is thick in one substep (a cloth at
+//! 20 m/s against a 1 cm plate, or a thin board swept through a curtain) can end past it, or
+//! inside it and be projected out of the far face. This pass runs after the integrator, with
+//! the positions from the start of the substep:
+//!
+//! 1. The start point `a` is carried into the collider's pose at the end of the substep
+//!    (undoing the collider's own translation and turn over the substep), so that `a → b`
+//!    is the particle's path relative to the collider and `b` is where the integrator left
+//!    the particle.
+//! 2. Cheap cull: every shape's signed distance `φ` is 1-Lipschitz, so the path cannot touch
+//!    the solid when `φ(a) + φ(b) ≥ |b − a|`. Nearly every particle stops here.
+//! 3. Conservative advancement (sphere tracing) along the path finds the first point where it
+//!    touches the solid surface, with the outward normal `n` there. It never steps past the
+//!    surface, because each step is at most the distance to it.
+//! 4. If `b` lies behind that entry point by more than a tolerance — `(b − p)·n < −τ` with
+//!    `τ = max(thickness / 4, 0.1 mm)` — the particle went through: it is put back at the
+//!    entry point, on the contact surface (`p + thickness·n`), its approaching normal
+//!    velocity relative to the collider is removed and Coulomb friction applied as in the
+//!    discrete pass. A particle that the discrete pass already put on the correct side is
+//!    left alone, so resting and sliding contacts are unchanged.
+//!
+//! 5. Last, [`project`] puts back on the contact surface any particle that a pass after the
+//!    integrator's own contact handling (strain limiting, self-collision) pushed into the
+//!    contact layer, so that every substep starts with the particles outside the solids.
+//!
+//! Particles starting inside a solid are left to the discrete pass. The passes allocate
+//! nothing and visit particles in index order (deterministic).
+
+use glam::{Quat, Vec3};
+
+use super::Collider;
+use crate::particles::Particles;
+
+/// Surface tolerance of the advancement, m.
+const HIT_EPSILON: f32 = 1e-5;
+/// Most advancement steps along one path; a path that grazes the surface for longer is
+/// treated as touching at the last point reached (which is still outside).
+const MAX_MARCH: usize = 64;
+
+/// Moves every free particle that passed through a collider during the substep back to the
+/// side it came from. `start` holds the positions at the start of the substep, `h` is the
+/// substep length (the colliders are at their pose at its end). Returns the number of
+/// particles corrected.
+pub(crate) fn resolve(
+    colliders: &[Collider],
+    start: &[Vec3],
+    particles: &mut Particles,
+    h: f32,
+) -> u32 {
+    let mut corrected = 0;
+    for col in colliders {
+        let pivot_end = col.shape.pivot();
+        let pivot_start = pivot_end - col.velocity * h;
+        let turn = if col.angular_velocity == Vec3::ZERO {
+            None
+        } else {
+            Some(Quat::from_scaled_axis(col.angular_velocity * h))
+        };
+        let tau = (0.25 * col.thickness).max(1e-4);
+        let (mu_s, mu_k) = (
+            col.friction.static_coefficient,
+            col.friction.kinetic_coefficient,
+        );
+        for (((x, v), &w), &a) in particles
+            .position
+            .iter_mut()
+            .zip(particles.velocity.iter_mut())
+            .zip(&particles.inv_mass)
+            .zip(start)
+        {
+            if w == 0.0 {
+                continue;
+            }
+            // 1. the path relative to the collider, in its end pose
+            let a = match turn {
+                Some(q) => pivot_end + q * (a - pivot_start),
+                None => a + (pivot_end - pivot_start),
+            };
+            let b = *x;
+            let path = b - a;
+            let len = path.length();
+            if !(len > 0.0) {
+                continue;
+            }
+            // 2. cull
+            let (da, _) = col.shape.distance_within(a, len);
+            if da < 0.0 {
+                continue;
+            }
+            let (db, _) = col.shape.distance_within(b, len);
+            if da + db >= len {
+                continue;
+            }
+            // 3. advance to the first touch
+            let mut t = 0.0;
+            let mut p = a;
+            let mut hit = None;
+            for _ in 0..MAX_MARCH {
+                let (d, n) = col.shape.distance_within(p, len);
+                if d <= HIT_EPSILON {
+                    hit = Some(n);
+                    break;
+                }
+                t += d / len;
+                if t >= 1.0 {
+                    break;
+                }
+                p = a + t * path;
+                hit = Some(n);
+            }
+            let Some(n) = hit else { continue };
+            if t >= 1.0 || n == Vec3::ZERO {
+                continue;
+            }
+            // 4. through? back to the entry point
+            if (b - p).dot(n) >= -tau {
+                continue;
+            }
+            corrected += 1;
+            *x = p + col.thickness * n;
+            let v_col = col.velocity_at(*x);
+            let v_rel = *v - v_col;
+            let vn = v_rel.dot(n);
+            if vn >= 0.0 {
+                continue;
+            }
+            let dvn = -vn;
+            let vt = v_rel - vn * n;
+            let vt_len = vt.length();
+            let vt_new = if vt_len <= mu_s * dvn {
+                Vec3::ZERO
+            } else {
+                vt * (1.0 - mu_k * dvn / vt_len).max(0.0)
+            };
+            *v = v_col + vt_new;
+        }
+    }
+    corrected
+}
+
+/// Depth below the contact surface that [`project`] tolerates, m (rounding of the contact
+/// passes themselves).
+const PROJECT_SLACK: f32 = 1e-6;
+
+/// Moves every free particle that is more than [`PROJECT_SLACK`] inside a collider's
+/// contact surface back onto it along the surface normal, and removes its velocity into the
+/// collider (relative to the collider's surface). No friction: this only undoes what later
+/// passes did to particles the contact pass had already handled.
+pub(crate) fn project(colliders: &[Collider], particles: &mut Particles) {
+    for col in colliders {
+        for ((x, v), &w) in particles
+            .position
+            .iter_mut()
+            .zip(particles.velocity.iter_mut())
+            .zip(&particles.inv_mass)
+        {
+            if w == 0.0 {
+                continue;
+            }
+            let (dist, n) = col.shape.distance_within(*x, col.contact_range());
+            let phi = dist - col.thickness;
+            if phi >= -PROJECT_SLACK || n == Vec3::ZERO {
+                continue;
+            }
+            *x -= phi * n;
+            let vn = (*v - col.velocity_at(*x)).dot(n);
+            if vn < 0.0 {
+                *v -= vn * n;
+            }
+        }
+    }
+}
