@@ -461,5 +461,5 @@ fn grid_topology(rows: usize, cols: usize, position: &[Vec3]) -> Topology {
     per_kind[SpringKind::Weft as usize] = weft;
     per_kind[SpringKind::Shear as usize] = shear;
     per_kind[SpringKind::Bend as usize] = bend;
-    Topology::new(per_kind, triangles)
+    Topology::new(per_kind, triangles).with_grid(rows, cols)
 }

@@ -107,6 +107,9 @@ pub struct Topology {
     springs: Vec<Spring>,
     ranges: [Range<usize>; 4],
     triangles: Vec<[u32; 3]>,
+    /// `(rows, cols)` when the springs are exactly those of a regular grid in the builder's
+    /// order (set by [`crate::GridBuilder`]): the explicit integrators' grid fast path.
+    grid: Option<(usize, usize)>,
 }
 
 impl Topology {
@@ -125,7 +128,24 @@ impl Topology {
             springs,
             ranges,
             triangles,
+            grid: None,
         }
+    }
+
+    /// Records that the springs are those of a `rows × cols` grid in the builder's order
+    /// (see [`Topology::grid`]).
+    #[must_use]
+    pub(crate) fn with_grid(mut self, rows: usize, cols: usize) -> Self {
+        self.grid = Some((rows, cols));
+        self
+    }
+
+    /// `(rows, cols)` when this is the topology of a regular grid built by
+    /// [`crate::GridBuilder`] (springs in its order), which lets the explicit integrators use
+    /// their row-sliced fast path; `None` otherwise.
+    #[must_use]
+    pub fn grid(&self) -> Option<(usize, usize)> {
+        self.grid
     }
 
     /// All springs, grouped by kind.

@@ -51,6 +51,27 @@ pub(crate) fn resolve(
     particles: &mut Particles,
     h: f32,
 ) -> u32 {
+    let p = particles;
+    resolve_in(
+        colliders,
+        start,
+        &mut p.position,
+        &mut p.velocity,
+        &p.inv_mass,
+        h,
+    )
+}
+
+/// [`resolve`] on a range of particles (slices of equal length). Each particle is handled on
+/// its own, so ranges can run in any order.
+pub(crate) fn resolve_in(
+    colliders: &[Collider],
+    start: &[Vec3],
+    position: &mut [Vec3],
+    velocity: &mut [Vec3],
+    inv_mass: &[f32],
+    h: f32,
+) -> u32 {
     let mut corrected = 0;
     for col in colliders {
         let pivot_end = col.shape.pivot();
@@ -65,11 +86,10 @@ pub(crate) fn resolve(
             col.friction.static_coefficient,
             col.friction.kinetic_coefficient,
         );
-        for (((x, v), &w), &a) in particles
-            .position
+        for (((x, v), &w), &a) in position
             .iter_mut()
-            .zip(particles.velocity.iter_mut())
-            .zip(&particles.inv_mass)
+            .zip(velocity.iter_mut())
+            .zip(inv_mass)
             .zip(start)
         {
             if w == 0.0 {
@@ -151,13 +171,19 @@ const PROJECT_SLACK: f32 = 1e-6;
 /// collider (relative to the collider's surface). No friction: this only undoes what later
 /// passes did to particles the contact pass had already handled.
 pub(crate) fn project(colliders: &[Collider], particles: &mut Particles) {
+    let p = particles;
+    project_in(colliders, &mut p.position, &mut p.velocity, &p.inv_mass);
+}
+
+/// [`project`] on a range of particles (slices of equal length).
+pub(crate) fn project_in(
+    colliders: &[Collider],
+    position: &mut [Vec3],
+    velocity: &mut [Vec3],
+    inv_mass: &[f32],
+) {
     for col in colliders {
-        for ((x, v), &w) in particles
-            .position
-            .iter_mut()
-            .zip(particles.velocity.iter_mut())
-            .zip(&particles.inv_mass)
-        {
+        for ((x, v), &w) in position.iter_mut().zip(velocity.iter_mut()).zip(inv_mass) {
             if w == 0.0 {
                 continue;
             }

@@ -455,16 +455,30 @@ pub(crate) fn resolve_contacts(
     pos_weight: f32,
     stats: &mut ContactStats,
 ) {
-    stats.contacts = 0;
+    let p = particles;
+    stats.contacts = resolve_contacts_in(
+        colliders,
+        &mut p.position,
+        &mut p.velocity,
+        &p.inv_mass,
+        pos_weight,
+    );
+}
+
+/// [`resolve_contacts`] on a range of particles (slices of equal length); returns the number
+/// of contacts. Each particle is handled on its own, so ranges can run in any order.
+pub(crate) fn resolve_contacts_in(
+    colliders: &[Collider],
+    position: &mut [Vec3],
+    velocity: &mut [Vec3],
+    inv_mass: &[f32],
+    pos_weight: f32,
+) -> u32 {
+    let mut contacts = 0;
     for collider in colliders {
         let mu_s = collider.friction.static_coefficient;
         let mu_k = collider.friction.kinetic_coefficient;
-        for ((x, v), &w) in particles
-            .position
-            .iter_mut()
-            .zip(particles.velocity.iter_mut())
-            .zip(&particles.inv_mass)
-        {
+        for ((x, v), &w) in position.iter_mut().zip(velocity.iter_mut()).zip(inv_mass) {
             if w == 0.0 {
                 continue;
             }
@@ -473,7 +487,7 @@ pub(crate) fn resolve_contacts(
             if phi >= 0.0 {
                 continue;
             }
-            stats.contacts += 1;
+            contacts += 1;
             *x -= phi * n;
             let v_col = collider.velocity_at(*x);
             let v_rel = *v - v_col;
@@ -493,4 +507,5 @@ pub(crate) fn resolve_contacts(
             *x += pos_weight * (vt_new - vt);
         }
     }
+    contacts
 }

@@ -6,6 +6,7 @@
 //! not fit "forces then integrate" (implicit, constraint-based) plug in the same way.
 
 mod explicit;
+pub(crate) mod grid_kernel;
 mod implicit;
 mod xpbd;
 
@@ -80,6 +81,8 @@ pub(crate) struct Solver {
     hash: crate::collide::self_collision::SpatialHash,
     /// Positions at the start of the substep (for continuous collision).
     start: Vec<Vec3>,
+    /// Scratch of the explicit integrators' grid fast path.
+    grid: grid_kernel::GridScratch,
 }
 
 impl Solver {
@@ -101,12 +104,15 @@ impl Solver {
         if self.force.len() != n {
             self.force.resize(n, Vec3::ZERO);
         }
-        let ccd = ctx.config.continuous_collision && !ctx.colliders.is_empty();
+        let grid = grid_kernel::plan(integrator, &ctx, &mut self.grid);
+        let ccd = ctx.config.continuous_collision
+            && !ctx.colliders.is_empty()
+            && !grid.is_some_and(|g| g.ccd);
         if ccd {
             self.start.clear();
             self.start.extend_from_slice(&ctx.particles.position);
         }
-        self.integrate(integrator, &mut ctx);
+        self.integrate(integrator, grid, &mut ctx);
         if ccd {
             ctx.contacts.ccd +=
                 crate::collide::ccd::resolve(ctx.colliders, &self.start, ctx.particles, ctx.h);
@@ -114,8 +120,14 @@ impl Solver {
         }
     }
 
-    fn integrate(&mut self, integrator: Integrator, ctx: &mut SubstepCtx<'_>) {
+    fn integrate(
+        &mut self,
+        integrator: Integrator,
+        grid: Option<grid_kernel::Plan>,
+        ctx: &mut SubstepCtx<'_>,
+    ) {
         match integrator {
+            _ if grid.is_some() => grid_kernel::run(ctx, &mut self.grid, grid, &mut self.force),
             Integrator::ForwardEuler => explicit::forward_euler(ctx, &mut self.force),
             Integrator::SymplecticEuler => explicit::symplectic_euler(ctx, &mut self.force),
             Integrator::Verlet => explicit::position_verlet(ctx, &mut self.force),

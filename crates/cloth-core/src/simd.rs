@@ -1,0 +1,178 @@
+//! Run-time choice of the instruction set of the explicit integrators' grid fast path.
+//!
+//! The fast path (see the `solver::grid_kernel` module docs) is written as plain loops over
+//! equal-length `f32` slices, which the compiler vectorises. This module compiles that one
+//! generic code three times: for the baseline target (SSE2 on x86-64, the portable
+//! fallback), with AVX2 + FMA, and with AVX-512 (F + VL); the widest one the CPU supports
+//! (checked with `is_x86_feature_detected!` at run time) runs. The compiler never contracts
+//! a multiplication and an addition into a fused multiply-add on its own, and `sqrt` and
+//! division are exact in every instruction set, so **all kernels give the same bits as the
+//! reference path** (tested in `tests/fast_path.rs`).
+//!
+//! This is the crate's only module with `unsafe`: calling a `#[target_feature]` function,
+//! which is sound only on a CPU that has the features; every call is guarded.
+#![allow(unsafe_code)]
+
+use std::cell::Cell;
+
+use glam::Vec3;
+
+use crate::error::{ClothError, Result};
+use crate::solver::grid_kernel::{self, Band, BandResult, Job};
+
+/// Which code runs the substeps of the explicit integrators (forward Euler, symplectic
+/// Euler, position Verlet) on a grid cloth.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Kernel {
+    /// The reference path: forces per spring through the index arrays
+    /// ([`crate::forces`]), then integrate, then contacts. Also what every non-grid cloth,
+    /// every other integrator and a cloth with air drag use.
+    Reference,
+    /// The grid fast path for the baseline instruction set (SSE2 on x86-64).
+    Portable,
+    /// The grid fast path with AVX2 and FMA (x86-64).
+    Avx2,
+    /// The grid fast path with AVX-512 F and VL (x86-64).
+    Avx512,
+}
+
+impl Kernel {
+    /// Every kernel, from the reference to the widest.
+    pub const ALL: [Kernel; 4] = [Self::Reference, Self::Portable, Self::Avx2, Self::Avx512];
+
+    /// Lower-case name (`reference`, `portable`, `avx2`, `avx512`).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Reference => "reference",
+            Self::Portable => "portable",
+            Self::Avx2 => "avx2",
+            Self::Avx512 => "avx512",
+        }
+    }
+
+    /// Whether this CPU can run the kernel.
+    #[must_use]
+    pub fn is_available(self) -> bool {
+        match self {
+            Self::Reference | Self::Portable => true,
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx2 => {
+                std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("fma")
+            }
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx512 => {
+                Self::Avx2.is_available()
+                    && std::arch::is_x86_feature_detected!("avx512f")
+                    && std::arch::is_x86_feature_detected!("avx512vl")
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            Self::Avx2 | Self::Avx512 => false,
+        }
+    }
+
+    /// The widest kernel this CPU runs.
+    #[must_use]
+    pub fn best() -> Kernel {
+        [Self::Avx512, Self::Avx2]
+            .into_iter()
+            .find(|k| k.is_available())
+            .unwrap_or(Self::Portable)
+    }
+}
+
+thread_local! {
+    static CHOSEN: Cell<Option<Kernel>> = const { Cell::new(None) };
+}
+
+/// Chooses the kernel for the steps run **on this thread** (`None`: [`Kernel::best`], the
+/// default). Every kernel gives the same results; this is for measuring and testing them.
+///
+/// # Errors
+/// [`ClothError::InvalidArgument`] when this CPU cannot run `kernel`.
+pub fn set_kernel(kernel: Option<Kernel>) -> Result<()> {
+    if let Some(k) = kernel
+        && !k.is_available()
+    {
+        return Err(ClothError::invalid(
+            "kernel",
+            k.name(),
+            "a kernel this CPU supports",
+        ));
+    }
+    CHOSEN.with(|c| c.set(kernel));
+    Ok(())
+}
+
+/// The kernel the steps on this thread use.
+#[must_use]
+pub fn kernel() -> Kernel {
+    CHOSEN.with(Cell::get).unwrap_or_else(Kernel::best)
+}
+
+/// The kernel that steps `sim` on this thread: [`kernel`] when the grid fast path applies
+/// (an explicit integrator, a cloth built by [`crate::GridBuilder`], air drag off),
+/// [`Kernel::Reference`] otherwise.
+#[must_use]
+pub fn kernel_for(sim: &crate::Simulation) -> Kernel {
+    let k = kernel();
+    if grid_kernel::applies(k, sim.config().integrator, sim.config(), sim.topology()) {
+        k
+    } else {
+        Kernel::Reference
+    }
+}
+
+/// Runs one band of the grid fast path with `kernel`.
+pub(crate) fn run_band(
+    kernel: Kernel,
+    job: &Job<'_>,
+    r0: usize,
+    r1: usize,
+    band: &mut Band,
+    out_x: &mut [Vec3],
+    out_v: &mut [Vec3],
+) -> BandResult {
+    match kernel {
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx512 if Kernel::Avx512.is_available() => {
+            // SAFETY: the CPU has every feature `band_avx512` is compiled with (checked on
+            // the line above).
+            unsafe { band_avx512(job, r0, r1, band, out_x, out_v) }
+        }
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 if Kernel::Avx2.is_available() => {
+            // SAFETY: the CPU has every feature `band_avx2` is compiled with (checked on the
+            // line above).
+            unsafe { band_avx2(job, r0, r1, band, out_x, out_v) }
+        }
+        _ => grid_kernel::band(job, r0, r1, band, out_x, out_v),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn band_avx2(
+    job: &Job<'_>,
+    r0: usize,
+    r1: usize,
+    band: &mut Band,
+    out_x: &mut [Vec3],
+    out_v: &mut [Vec3],
+) -> BandResult {
+    grid_kernel::band(job, r0, r1, band, out_x, out_v)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+fn band_avx512(
+    job: &Job<'_>,
+    r0: usize,
+    r1: usize,
+    band: &mut Band,
+    out_x: &mut [Vec3],
+    out_v: &mut [Vec3],
+) -> BandResult {
+    grid_kernel::band(job, r0, r1, band, out_x, out_v)
+}

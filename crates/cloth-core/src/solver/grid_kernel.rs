@@ -1,0 +1,738 @@
+//! The explicit integrators' fast path on a regular grid.
+//!
+//! On a cloth built by [`crate::GridBuilder`] every spring kind is a shifted copy of one row
+//! pattern, so a substep can run row by row over contiguous slices (no index chasing, no
+//! bounds checks in the inner loops, which the compiler vectorises):
+//!
+//! 1. a row's particle state is copied from the `Vec3` arrays into six `f32` row buffers
+//!    (x, y, z, vx, vy, vz; position Verlet's first drift is applied here);
+//! 2. the six spring classes whose first end lies in row `s` (warp `(s,c)–(s+1,c)`, weft
+//!    `(s,c)–(s,c+1)`, the two shear diagonals, the two bend springs) are evaluated once each
+//!    from rows `s`, `s+1`, `s+2` into small per-class ring buffers (3 rows);
+//! 3. row `s`'s particles then have every spring force they need (rows `s−2 ..= s`): each
+//!    particle sums gravity, damping and its 12 spring contributions **in exactly the order
+//!    of the reference [`crate::forces::accumulate`]** (kind by kind, springs in row-major
+//!    order, `+f` at the spring's first end, `−f` at its second), integrates, and is written
+//!    to the *next* state arrays; contacts (and continuous collision) run on that row at once.
+//!
+//! Absent neighbours (grid edges, switched-off kinds) contribute a signed zero that is an
+//! exact identity: `x + (−0.0) == x` and `x − (+0.0) == x` for every `x`, so the padding of
+//! the ring buffers holds −0.0 where a term is added and +0.0 where it is subtracted. Every
+//! spring force uses the reference's operations in the reference's order (no fused
+//! multiply-add, IEEE `sqrt` and division), so **the fast path is bit-identical to the
+//! reference path**, for every kernel (portable, AVX2, AVX-512) and every number of threads.
+//! The one reference case not reproduced, a spring of zero length (skipped by the reference),
+//! is detected and the substep is redone by the reference path.
+//!
+//! Threads: the rows are cut into a fixed number of bands (one per thread of the current
+//! rayon pool); each band reads only the *old* state (double buffering, the new state is
+//! swapped in at the end) and recomputes the springs of the two rows above it (halo), so no
+//! band waits for another and no sum depends on the partition or on scheduling.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::SubstepCtx;
+use crate::collide::{Collider, ccd, resolve_contacts_in};
+use crate::config::{Integrator, SimConfig};
+use crate::simd::{self, Kernel};
+use crate::topology::{SpringKind, Topology};
+
+/// Spring classes of the grid, as shifted row patterns.
+const WARP: usize = 0;
+const WEFT: usize = 1;
+const DIAG: usize = 2;
+const ANTI: usize = 3;
+const BENDV: usize = 4;
+const BENDH: usize = 5;
+
+/// Per class: (row offset of the second end, column offset of the first end, column
+/// offset of the second end, spring kind). The spring of class `k` at slot `(r, c)` joins
+/// `(r, c + a_dc)` to `(r + dr, c + b_dc)`.
+const CLASSES: [(usize, usize, usize, SpringKind); 6] = [
+    (1, 0, 0, SpringKind::Warp),
+    (0, 0, 1, SpringKind::Weft),
+    (1, 0, 1, SpringKind::Shear),
+    (1, 1, 0, SpringKind::Shear),
+    (2, 0, 0, SpringKind::Bend),
+    (0, 0, 2, SpringKind::Bend),
+];
+
+/// Front padding of the force rows (two slots, for the `c − 2` of horizontal bend springs).
+const PAD: usize = 2;
+
+/// Which explicit scheme a grid substep runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Scheme {
+    /// x ← x + h·v; v ← v + h·F/m.
+    Forward,
+    /// v ← v + h·F/m; x ← x + h·v.
+    Symplectic,
+    /// x ← x + ½h·v; v ← v + h·F/m; x ← x + ½h·v.
+    Verlet,
+}
+
+impl Scheme {
+    fn of(integrator: Integrator) -> Option<Self> {
+        match integrator {
+            Integrator::ForwardEuler => Some(Self::Forward),
+            Integrator::SymplecticEuler => Some(Self::Symplectic),
+            Integrator::Verlet => Some(Self::Verlet),
+            _ => None,
+        }
+    }
+}
+
+/// The decision, made before a substep, to run it on the grid fast path.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Plan {
+    scheme: Scheme,
+    kernel: Kernel,
+    /// The fast path also runs the continuous-collision passes (per row), so the solver must
+    /// not run them again.
+    pub ccd: bool,
+}
+
+/// Scratch of the fast path: rest lengths by class, the next state, per-band ring buffers.
+#[derive(Debug, Default, Clone)]
+pub(crate) struct GridScratch {
+    /// `(rows, cols, springs)` the scratch was prepared for, and whether the topology is a
+    /// grid in the builder's order.
+    key: Option<(usize, usize, usize, bool)>,
+    /// Rest length per class and slot `r * cols + c`.
+    rest: [Vec<f32>; 6],
+    next_position: Vec<Vec3>,
+    next_velocity: Vec<Vec3>,
+    /// Rows of +0.0 and −0.0 (`cols + 2·PAD`), the terms of absent neighbours.
+    plus_zero: Vec<f32>,
+    minus_zero: Vec<f32>,
+    bands: Vec<Band>,
+}
+
+/// Ring buffers of one band.
+#[derive(Debug, Default, Clone)]
+pub(crate) struct Band {
+    /// Row state by ring slot: x, y, z, vx, vy, vz (`cols` each).
+    state: [[Vec<f32>; 6]; 3],
+    /// Spring force by class, ring slot and component (`cols + 2·PAD` each).
+    force: [[[Vec<f32>; 3]; 3]; 6],
+    /// The new state of the current row, by component: x, y, z, vx, vy, vz.
+    out: [Vec<f32>; 6],
+}
+
+impl Band {
+    fn prepare(&mut self, cols: usize) {
+        if self.out[0].len() == cols {
+            return;
+        }
+        for slot in &mut self.state {
+            for a in slot {
+                a.clear();
+                a.resize(cols, 0.0);
+            }
+        }
+        for a in &mut self.out {
+            a.clear();
+            a.resize(cols, 0.0);
+        }
+        for (class, rows) in self.force.iter_mut().enumerate() {
+            // Padding: −0.0 where the term is added, +0.0 where it is subtracted (see the
+            // module docs); the anti-diagonal is read as `+A[c − 1]` and `−A[c]`, the other
+            // horizontal classes as `−F[c − 1 or 2]` and `+F[c]`.
+            let (front, back) = if class == ANTI {
+                (-0.0, 0.0)
+            } else {
+                (0.0, -0.0)
+            };
+            for slot in rows {
+                for a in slot {
+                    a.clear();
+                    a.resize(cols + 2 * PAD, back);
+                    a[..PAD].fill(front);
+                }
+            }
+        }
+    }
+}
+
+/// Whether a force kind contributes at all (the reference skips a kind whose stiffness and
+/// damping are both zero, or all springs when both switches are off).
+fn kind_params(config: &SimConfig, kind: SpringKind) -> Option<(f32, f32)> {
+    let sw = config.forces;
+    if !(sw.springs || sw.dashpots) {
+        return None;
+    }
+    let p = config.material.params(kind);
+    let k = if sw.springs { p.stiffness } else { 0.0 };
+    let c = if sw.dashpots { p.damping } else { 0.0 };
+    if k == 0.0 && c == 0.0 {
+        None
+    } else {
+        Some((k, c))
+    }
+}
+
+/// The reference's air term is per triangle; the fast path runs only when it is off.
+fn air_active(config: &SimConfig) -> bool {
+    let air = &config.air;
+    config.forces.air
+        && !(air.density == 0.0 || (air.drag_coefficient == 0.0 && air.lift_coefficient == 0.0))
+}
+
+impl GridScratch {
+    /// Checks (once per topology) that the springs are the builder's grid and records the
+    /// rest lengths by class. Returns whether the fast path can run.
+    fn prepare(&mut self, topology: &Topology, n: usize) -> bool {
+        let Some((rows, cols)) = topology.grid() else {
+            return false;
+        };
+        let springs = topology.springs().len();
+        if let Some((r, c, s, ok)) = self.key
+            && (r, c, s) == (rows, cols, springs)
+        {
+            return ok;
+        }
+        let ok = rows * cols == n && rows >= 2 && cols >= 2 && self.load_rest(topology, rows, cols);
+        self.key = Some((rows, cols, springs, ok));
+        if ok {
+            let padded = cols + 2 * PAD;
+            self.plus_zero.clear();
+            self.plus_zero.resize(padded, 0.0);
+            self.minus_zero.clear();
+            self.minus_zero.resize(padded, -0.0);
+        }
+        ok
+    }
+
+    /// Replays the builder's spring order and checks every spring against it.
+    fn load_rest(&mut self, topology: &Topology, rows: usize, cols: usize) -> bool {
+        for r in &mut self.rest {
+            r.clear();
+            r.resize(rows * cols, 0.0);
+        }
+        let idx = |r: usize, c: usize| (r * cols + c) as u32;
+        let mut next = [0_usize; 4];
+        let mut take = |rest: &mut [Vec<f32>; 6], class: usize, r: usize, c: usize| -> bool {
+            let (dr, a_dc, b_dc, kind) = CLASSES[class];
+            let list = topology.springs_of(kind);
+            let Some(s) = list.get(next[kind as usize]) else {
+                return false;
+            };
+            next[kind as usize] += 1;
+            if s.a != idx(r, c + a_dc) || s.b != idx(r + dr, c + b_dc) {
+                return false;
+            }
+            rest[class][r * cols + c] = s.rest_length;
+            true
+        };
+        for r in 0..rows {
+            for c in 0..cols {
+                let ok = (r + 1 >= rows || take(&mut self.rest, WARP, r, c))
+                    && (c + 1 >= cols || take(&mut self.rest, WEFT, r, c))
+                    && (r + 1 >= rows
+                        || c + 1 >= cols
+                        || (take(&mut self.rest, DIAG, r, c) && take(&mut self.rest, ANTI, r, c)))
+                    && (r + 2 >= rows || take(&mut self.rest, BENDV, r, c))
+                    && (c + 2 >= cols || take(&mut self.rest, BENDH, r, c));
+                if !ok {
+                    return false;
+                }
+            }
+        }
+        SpringKind::ALL
+            .iter()
+            .all(|&k| next[k as usize] == topology.springs_of(k).len())
+    }
+}
+
+/// Whether the fast path runs for these settings (the topology's springs are checked
+/// against the grid pattern once more before the first substep).
+pub(crate) fn applies(
+    kernel: Kernel,
+    integrator: Integrator,
+    config: &SimConfig,
+    topology: &Topology,
+) -> bool {
+    kernel != Kernel::Reference
+        && Scheme::of(integrator).is_some()
+        && !air_active(config)
+        && topology.grid().is_some()
+}
+
+/// Decides whether this substep runs on the grid fast path (and prepares the scratch).
+pub(crate) fn plan(
+    integrator: Integrator,
+    ctx: &SubstepCtx<'_>,
+    scratch: &mut GridScratch,
+) -> Option<Plan> {
+    let scheme = Scheme::of(integrator)?;
+    let kernel = simd::kernel();
+    if !applies(kernel, integrator, ctx.config, ctx.topology) {
+        return None;
+    }
+    if !scratch.prepare(ctx.topology, ctx.particles.len()) {
+        return None;
+    }
+    // The continuous-collision passes come after strain limiting and self-collision, which
+    // run on the whole cloth after the integrator: fuse them only when neither is on.
+    let ccd = ctx.config.continuous_collision
+        && !ctx.colliders.is_empty()
+        && ctx.config.strain_limit.is_none()
+        && ctx.config.self_collision.is_none();
+    Some(Plan {
+        scheme,
+        kernel,
+        ccd,
+    })
+}
+
+/// Everything a band reads (shared by all bands).
+pub(crate) struct Job<'a> {
+    rows: usize,
+    cols: usize,
+    scheme: Scheme,
+    h: f32,
+    gravity: Vec3,
+    damping: f32,
+    /// Stiffness and damping per class, `None` when its kind contributes nothing.
+    params: [Option<(f32, f32)>; 6],
+    position: &'a [Vec3],
+    velocity: &'a [Vec3],
+    mass: &'a [f32],
+    inv_mass: &'a [f32],
+    rest: &'a [Vec<f32>; 6],
+    plus_zero: &'a [f32],
+    minus_zero: &'a [f32],
+    colliders: &'a [Collider],
+    ccd: bool,
+}
+
+/// What a band reports.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct BandResult {
+    contacts: u32,
+    ccd: u32,
+    degenerate: bool,
+}
+
+impl BandResult {
+    fn merge(self, o: Self) -> Self {
+        Self {
+            contacts: self.contacts + o.contacts,
+            ccd: self.ccd + o.ccd,
+            degenerate: self.degenerate || o.degenerate,
+        }
+    }
+}
+
+/// Runs one substep on the fast path. Returns `false` (with the particles untouched) when the
+/// reference path must run instead (a zero-length spring).
+pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan: Plan) -> bool {
+    let (rows, cols) = ctx.topology.grid().expect("planned on a grid");
+    let n = rows * cols;
+    let config = ctx.config;
+    let sw = config.forces;
+    let mut params = [None; 6];
+    for (p, &(_, _, _, kind)) in params.iter_mut().zip(&CLASSES) {
+        *p = kind_params(config, kind);
+    }
+    let threads = rayon::current_num_threads().max(1);
+    let bands = threads.min(rows.div_ceil(8)).max(1);
+    let band_rows = rows.div_ceil(bands);
+    let bands = rows.div_ceil(band_rows);
+    if scratch.bands.len() < bands {
+        scratch.bands.resize_with(bands, Band::default);
+    }
+    for b in &mut scratch.bands[..bands] {
+        b.prepare(cols);
+    }
+    scratch.next_position.resize(n, Vec3::ZERO);
+    scratch.next_velocity.resize(n, Vec3::ZERO);
+    let p = &*ctx.particles;
+    let job = Job {
+        rows,
+        cols,
+        scheme: plan.scheme,
+        h: ctx.h,
+        gravity: if sw.gravity {
+            config.gravity
+        } else {
+            Vec3::ZERO
+        },
+        damping: if sw.damping { config.damping } else { 0.0 },
+        params,
+        position: &p.position,
+        velocity: &p.velocity,
+        mass: &p.mass,
+        inv_mass: &p.inv_mass,
+        rest: &scratch.rest,
+        plus_zero: &scratch.plus_zero,
+        minus_zero: &scratch.minus_zero,
+        colliders: ctx.colliders,
+        ccd: plan.ccd,
+    };
+    let chunk = band_rows * cols;
+    let run = |(i, ((band, px), pv)): (usize, ((&mut Band, &mut [Vec3]), &mut [Vec3]))| {
+        let r0 = i * band_rows;
+        let r1 = (r0 + band_rows).min(rows);
+        simd::run_band(plan.kernel, &job, r0, r1, band, px, pv)
+    };
+    let result = if bands == 1 {
+        run((
+            0,
+            (
+                (&mut scratch.bands[0], &mut scratch.next_position[..]),
+                &mut scratch.next_velocity[..],
+            ),
+        ))
+    } else {
+        scratch.bands[..bands]
+            .par_iter_mut()
+            .zip(scratch.next_position.par_chunks_mut(chunk))
+            .zip(scratch.next_velocity.par_chunks_mut(chunk))
+            .enumerate()
+            .map(run)
+            .reduce(BandResult::default, BandResult::merge)
+    };
+    if result.degenerate {
+        return false;
+    }
+    let p = &mut *ctx.particles;
+    std::mem::swap(&mut p.position, &mut scratch.next_position);
+    std::mem::swap(&mut p.velocity, &mut scratch.next_velocity);
+    ctx.contacts.contacts = result.contacts;
+    if plan.ccd {
+        ctx.contacts.ccd += result.ccd;
+    }
+    true
+}
+
+/// After a substep that fell back to the reference path, the continuous-collision passes the
+/// plan promised (with the old positions kept in the scratch).
+pub(crate) fn keep_start(scratch: &mut GridScratch, position: &[Vec3]) {
+    scratch.next_position.clear();
+    scratch.next_position.extend_from_slice(position);
+}
+
+/// The continuous-collision passes over the whole cloth from the positions saved by
+/// [`keep_start`] (used when a planned fast substep fell back to the reference path).
+pub(crate) fn ccd_after_fallback(ctx: &mut SubstepCtx<'_>, scratch: &GridScratch) {
+    ctx.contacts.ccd += ccd::resolve(ctx.colliders, &scratch.next_position, ctx.particles, ctx.h);
+    ccd::project(ctx.colliders, ctx.particles);
+}
+
+/// One band of rows `r0 .. r1`: writes their new state into `out_x`, `out_v` (the band's
+/// rows only). Generic code, compiled once per instruction set by [`crate::simd`].
+#[inline(always)]
+pub(crate) fn band(
+    job: &Job<'_>,
+    r0: usize,
+    r1: usize,
+    band: &mut Band,
+    out_x: &mut [Vec3],
+    out_v: &mut [Vec3],
+) -> BandResult {
+    let (rows, cols) = (job.rows, job.cols);
+    let mut result = BandResult::default();
+    let first = r0.saturating_sub(2);
+    let half = 0.5 * job.h;
+    let drift = job.scheme == Scheme::Verlet;
+    // Rows first ..= first + 2 into the ring.
+    for s in first..(first + 3).min(rows) {
+        load_row(job, s, drift, half, &mut band.state[s % 3]);
+    }
+    for s in first..r1 {
+        // Springs whose first end is in row s.
+        for class in 0..6 {
+            let Some((k, c)) = job.params[class] else {
+                continue;
+            };
+            let (dr, a_dc, b_dc, _) = CLASSES[class];
+            if s + dr >= rows {
+                continue;
+            }
+            let m = cols - a_dc.max(b_dc);
+            let rest = &job.rest[class][s * cols..][..m];
+            let (a, b) = if dr == 0 {
+                (&band.state[s % 3], &band.state[s % 3])
+            } else {
+                (&band.state[s % 3], &band.state[(s + dr) % 3])
+            };
+            let [fx, fy, fz] = &mut band.force[class][s % 3];
+            result.degenerate |= springs(
+                k,
+                c,
+                [
+                    &a[0][a_dc..][..m],
+                    &a[1][a_dc..][..m],
+                    &a[2][a_dc..][..m],
+                    &a[3][a_dc..][..m],
+                    &a[4][a_dc..][..m],
+                    &a[5][a_dc..][..m],
+                ],
+                [
+                    &b[0][b_dc..][..m],
+                    &b[1][b_dc..][..m],
+                    &b[2][b_dc..][..m],
+                    &b[3][b_dc..][..m],
+                    &b[4][b_dc..][..m],
+                    &b[5][b_dc..][..m],
+                ],
+                rest,
+                [
+                    &mut fx[PAD..][..m],
+                    &mut fy[PAD..][..m],
+                    &mut fz[PAD..][..m],
+                ],
+            );
+        }
+        if s >= r0 {
+            particle_row(job, s, band);
+            let lo = (s - r0) * cols;
+            let px = &mut out_x[lo..lo + cols];
+            let pv = &mut out_v[lo..lo + cols];
+            let [x, y, z, vx, vy, vz] = &band.out;
+            for (c, (p, v)) in px.iter_mut().zip(pv.iter_mut()).enumerate() {
+                *p = Vec3::new(x[c], y[c], z[c]);
+                *v = Vec3::new(vx[c], vy[c], vz[c]);
+            }
+            contacts_row(job, s, px, pv, &mut result);
+        }
+        // Row s + 3 replaces row s in the ring (needed by the springs of row s + 1).
+        if s + 3 < rows && s + 1 < r1 {
+            load_row(job, s + 3, drift, half, &mut band.state[s % 3]);
+        }
+    }
+    result
+}
+
+/// Contacts (and, when planned, continuous collision) of one new row, as the reference runs
+/// them on the whole cloth after integrating: each particle on its own.
+fn contacts_row(
+    job: &Job<'_>,
+    s: usize,
+    px: &mut [Vec3],
+    pv: &mut [Vec3],
+    result: &mut BandResult,
+) {
+    if job.colliders.is_empty() {
+        return;
+    }
+    let range = s * job.cols..(s + 1) * job.cols;
+    let w = &job.inv_mass[range.clone()];
+    let pos_weight = match job.scheme {
+        Scheme::Forward => 0.0,
+        Scheme::Symplectic => job.h,
+        Scheme::Verlet => 0.5 * job.h,
+    };
+    result.contacts += resolve_contacts_in(job.colliders, px, pv, w, pos_weight);
+    if job.ccd {
+        let start = &job.position[range];
+        result.ccd += ccd::resolve_in(job.colliders, start, px, pv, w, job.h);
+        ccd::project_in(job.colliders, px, pv, w);
+    }
+}
+
+/// Copies row `s` of the old state into `dst` (x, y, z, vx, vy, vz), with Verlet's first
+/// drift x + ½h·v applied.
+#[inline(always)]
+fn load_row(job: &Job<'_>, s: usize, drift: bool, half: f32, dst: &mut [Vec<f32>; 6]) {
+    let cols = job.cols;
+    let xs = &job.position[s * cols..][..cols];
+    let vs = &job.velocity[s * cols..][..cols];
+    let [x, y, z, vx, vy, vz] = dst;
+    let (x, y, z) = (&mut x[..cols], &mut y[..cols], &mut z[..cols]);
+    let (vx, vy, vz) = (&mut vx[..cols], &mut vy[..cols], &mut vz[..cols]);
+    for c in 0..cols {
+        let (p, v) = (xs[c], vs[c]);
+        let p = if drift { p + half * v } else { p };
+        x[c] = p.x;
+        y[c] = p.y;
+        z[c] = p.z;
+        vx[c] = v.x;
+        vy[c] = v.y;
+        vz[c] = v.z;
+    }
+}
+
+/// Hooke spring plus dashpot for `m` springs from ends `a` to ends `b` (x, y, z, vx, vy, vz
+/// each), the reference's operations in its order. Writes the force on the first end
+/// (`+f` there, `−f` on the second); returns whether a spring had zero length.
+#[inline(always)]
+fn springs(
+    k: f32,
+    c: f32,
+    a: [&[f32]; 6],
+    b: [&[f32]; 6],
+    rest: &[f32],
+    out: [&mut [f32]; 3],
+) -> bool {
+    let m = rest.len();
+    let [ax, ay, az, avx, avy, avz] = a.map(|s| &s[..m]);
+    let [bx, by, bz, bvx, bvy, bvz] = b.map(|s| &s[..m]);
+    let [fx, fy, fz] = out;
+    let (fx, fy, fz) = (&mut fx[..m], &mut fy[..m], &mut fz[..m]);
+    let mut degenerate = false;
+    for i in 0..m {
+        let lx = bx[i] - ax[i];
+        let ly = by[i] - ay[i];
+        let lz = bz[i] - az[i];
+        let len = (lx * lx + ly * ly + lz * lz).sqrt();
+        let (dx, dy, dz) = (lx / len, ly / len, lz / len);
+        let (wx, wy, wz) = (bvx[i] - avx[i], bvy[i] - avy[i], bvz[i] - avz[i]);
+        let magnitude = k * (len - rest[i]) + c * (wx * dx + wy * dy + wz * dz);
+        let ok = len > 0.0;
+        degenerate |= len <= 0.0;
+        fx[i] = if ok { magnitude * dx } else { 0.0 };
+        fy[i] = if ok { magnitude * dy } else { 0.0 };
+        fz[i] = if ok { magnitude * dz } else { 0.0 };
+    }
+    degenerate
+}
+
+/// Sums the forces on row `s` in the reference's order and integrates it into `band.out`.
+#[inline(always)]
+fn particle_row(job: &Job<'_>, s: usize, band: &mut Band) {
+    let (rows, cols) = (job.rows, job.cols);
+    let slot = |r: usize| r % 3;
+    let on = |class: usize| job.params[class].is_some();
+    let up1 = s.checked_sub(1);
+    let up2 = s.checked_sub(2);
+    let lo = s * cols;
+    let mass = &job.mass[lo..][..cols];
+    let w = &job.inv_mass[lo..][..cols];
+    let g = job.gravity.to_array();
+    let state = &band.state[slot(s)];
+    let (out_x, out_v) = band.out.split_at_mut(3);
+    for comp in 0..3 {
+        let pick = |class: usize, r: Option<usize>, added: bool| -> &[f32] {
+            let (dr, _, _, _) = CLASSES[class];
+            match r {
+                Some(r) if on(class) && r + dr < rows => &band.force[class][slot(r)][comp],
+                _ if added => job.minus_zero,
+                _ => job.plus_zero,
+            }
+        };
+        // Terms in the reference's order; offsets index the padded rows at column c.
+        let t = [
+            &pick(WARP, up1, false)[PAD..],          // − warp (s−1, c)
+            &pick(WARP, Some(s), true)[PAD..],       // + warp (s, c)
+            &pick(WEFT, Some(s), false)[PAD - 1..],  // − weft (s, c−1)
+            &pick(WEFT, Some(s), true)[PAD..],       // + weft (s, c)
+            &pick(DIAG, up1, false)[PAD - 1..],      // − diagonal (s−1, c−1)
+            &pick(ANTI, up1, false)[PAD..],          // − anti-diagonal (s−1, c)
+            &pick(ANTI, Some(s), true)[PAD - 1..],   // + anti-diagonal (s, c−1)
+            &pick(DIAG, Some(s), true)[PAD..],       // + diagonal (s, c)
+            &pick(BENDV, up2, false)[PAD..],         // − vertical bend (s−2, c)
+            &pick(BENDH, Some(s), false)[PAD - 2..], // − horizontal bend (s, c−2)
+            &pick(BENDV, Some(s), true)[PAD..],      // + vertical bend (s, c)
+            &pick(BENDH, Some(s), true)[PAD..],      // + horizontal bend (s, c)
+        ];
+        integrate_component(
+            job.scheme,
+            job.h,
+            g[comp],
+            job.damping,
+            mass,
+            w,
+            &state[comp][..cols],
+            &state[3 + comp][..cols],
+            t,
+            &mut out_x[comp][..cols],
+            &mut out_v[comp][..cols],
+        );
+    }
+}
+
+/// One component of one row: force m·g − d·v, the 12 spring terms in order, then the
+/// scheme's update, as the reference computes it.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn integrate_component(
+    scheme: Scheme,
+    h: f32,
+    g: f32,
+    damping: f32,
+    mass: &[f32],
+    w: &[f32],
+    x: &[f32],
+    v: &[f32],
+    t: [&[f32]; 12],
+    out_x: &mut [f32],
+    out_v: &mut [f32],
+) {
+    let n = x.len();
+    let (mass, w, v, out_x, out_v) = (
+        &mass[..n],
+        &w[..n],
+        &v[..n],
+        &mut out_x[..n],
+        &mut out_v[..n],
+    );
+    let [t0, t1, t2, t3, t4, t5, t6, t7, t8, t9, t10, t11] = t.map(|s| &s[..n]);
+    let half = 0.5 * h;
+    // The force on particle c: m·g − d·v, then the spring terms in the reference's order.
+    let force = |c: usize| {
+        let mut f = mass[c] * g - damping * v[c];
+        f -= t0[c];
+        f += t1[c];
+        f -= t2[c];
+        f += t3[c];
+        f -= t4[c];
+        f -= t5[c];
+        f += t6[c];
+        f += t7[c];
+        f -= t8[c];
+        f -= t9[c];
+        f += t10[c];
+        f += t11[c];
+        f
+    };
+    match scheme {
+        Scheme::Symplectic => {
+            for c in 0..n {
+                let nv = v[c] + (h * w[c]) * force(c);
+                out_v[c] = nv;
+                out_x[c] = x[c] + h * nv;
+            }
+        }
+        Scheme::Forward => {
+            for c in 0..n {
+                out_x[c] = x[c] + h * v[c];
+                out_v[c] = v[c] + (h * w[c]) * force(c);
+            }
+        }
+        Scheme::Verlet => {
+            for c in 0..n {
+                let nv = v[c] + (h * w[c]) * force(c);
+                out_v[c] = nv;
+                out_x[c] = x[c] + half * nv;
+            }
+        }
+    }
+}
+
+/// The explicit substep on the fast path, or (for a substep the fast path declines) the
+/// reference path followed by the continuous-collision passes the plan took over.
+pub(crate) fn run(
+    ctx: &mut SubstepCtx<'_>,
+    scratch: &mut GridScratch,
+    plan: Option<Plan>,
+    force: &mut [Vec3],
+) {
+    let Some(plan) = plan else { return };
+    if substep(ctx, scratch, plan) {
+        return;
+    }
+    if plan.ccd {
+        keep_start(scratch, &ctx.particles.position);
+    }
+    match plan.scheme {
+        Scheme::Forward => super::explicit::forward_euler(ctx, force),
+        Scheme::Symplectic => super::explicit::symplectic_euler(ctx, force),
+        Scheme::Verlet => super::explicit::position_verlet(ctx, force),
+    }
+    if plan.ccd {
+        ccd_after_fallback(ctx, scratch);
+    }
+}

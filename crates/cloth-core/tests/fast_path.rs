@@ -1,0 +1,223 @@
+//! The explicit integrators' grid fast path against the reference path, and threads.
+//!
+//! Tolerance: none. The fast path evaluates every spring with the reference's operations in
+//! the reference's order and sums each particle's forces in the reference's order (see the
+//! `solver::grid_kernel` docs), and no kernel uses an approximation (no reciprocal square
+//! root, no fused multiply-add), so positions, velocities and contact counts must be
+//! **bit-identical** for every kernel this CPU runs, and for 1, 2 and 3 threads.
+
+use cloth_core::glam::{Quat, Vec3};
+use cloth_core::simd::{self, Kernel};
+use cloth_core::{
+    Collider, Friction, Integrator, SelfCollision, Simulation, SpringParams, presets,
+};
+
+/// Bits of every position and velocity, and the contact count of every step.
+#[derive(Debug, PartialEq, Eq)]
+struct Trace {
+    position: Vec<[u32; 3]>,
+    velocity: Vec<[u32; 3]>,
+    contacts: Vec<u32>,
+}
+
+fn bits(v: &[Vec3]) -> Vec<[u32; 3]> {
+    v.iter().map(|p| p.to_array().map(f32::to_bits)).collect()
+}
+
+/// Steps `sim` `steps` times with `kernel` chosen on this thread, moving pin 0 (if pinned)
+/// along a path.
+fn run(mut sim: Simulation, kernel: Kernel, steps: usize) -> Trace {
+    simd::set_kernel(Some(kernel)).expect("available kernel");
+    let expected = if kernel == Kernel::Reference {
+        Kernel::Reference
+    } else {
+        kernel
+    };
+    assert_eq!(simd::kernel_for(&sim), expected, "the fast path must apply");
+    let mut contacts = Vec::new();
+    let pin0 = sim.particles().inv_mass[0] == 0.0;
+    let start = sim.particles().position[0];
+    for k in 0..steps {
+        if pin0 {
+            let t = k as f32 * 0.01;
+            sim.set_pin_target(0, start + Vec3::new(0.05 * t, 0.02 * t, 0.0))
+                .expect("pin target");
+        }
+        let stats = sim.step().expect("stable");
+        contacts.push(stats.contacts);
+    }
+    simd::set_kernel(None).expect("default");
+    Trace {
+        position: bits(&sim.particles().position),
+        velocity: bits(&sim.particles().velocity),
+        contacts,
+    }
+}
+
+fn without_air(mut sim: Simulation) -> Simulation {
+    let mut config = *sim.config();
+    config.air.density = 0.0;
+    sim.set_config(config).expect("config");
+    sim
+}
+
+/// The scenes: the peer's cloth on a ball; the drape with friction on a ball and the ground,
+/// plus a moving capsule, a turning box and a pinned, moving corner; a hanging curtain with
+/// shear switched off and no gravity on one side; each with every explicit integrator.
+fn scenes() -> Vec<(String, Simulation)> {
+    let mut out = Vec::new();
+    for integrator in Integrator::EXPLICIT {
+        let mut peer = presets::peer_ball(20).expect("peer");
+        let mut config = *peer.config();
+        config.integrator = integrator;
+        config.substeps = 100;
+        peer.set_config(config).expect("config");
+        // The ball raised into the cloth's path, with friction, so that it touches at once.
+        peer.set_collider(
+            0,
+            Collider::sphere(Vec3::new(0.0, 0.29, 0.0), 0.3).with_friction(Friction::new(0.5, 0.4)),
+        )
+        .expect("ball");
+        out.push((format!("peer-20/{}", integrator.name()), peer));
+
+        let mut drape = without_air(presets::drape(13, integrator).expect("drape"));
+        drape
+            .add_collider(
+                Collider::capsule(Vec3::new(-0.3, 0.5, 0.0), Vec3::new(0.3, 0.5, 0.2), 0.08)
+                    .with_velocity(Vec3::new(0.0, 0.3, 0.0))
+                    .with_friction(Friction::new(0.7, 0.5)),
+            )
+            .expect("capsule");
+        drape
+            .add_collider(
+                Collider::cuboid(
+                    Vec3::new(0.4, 0.52, -0.3),
+                    Vec3::new(0.1, 0.05, 0.2),
+                    Quat::from_rotation_y(0.3),
+                )
+                .with_angular_velocity(Vec3::new(0.0, 2.0, 0.0)),
+            )
+            .expect("box");
+        drape.pin(0).expect("pin");
+        out.push((format!("drape-13/{}", integrator.name()), drape));
+
+        let mut hanging = without_air(presets::hanging(11, integrator).expect("hanging"));
+        let mut config = *hanging.config();
+        config.material.shear = SpringParams::new(0.0, 0.0);
+        config.material.bend.damping = 0.0;
+        config.gravity = Vec3::new(0.5, -9.81, -0.0);
+        config.damping = 0.3;
+        hanging.set_config(config).expect("config");
+        hanging
+            .add_collider(Collider::sphere(Vec3::new(0.1, 1.0, 0.15), 0.2))
+            .expect("sphere");
+        out.push((format!("hanging-11/{}", integrator.name()), hanging));
+    }
+    // Forward Euler gains energy every substep: small substeps keep it stable for the test.
+    for (_, sim) in &mut out {
+        let mut config = *sim.config();
+        if config.integrator == Integrator::ForwardEuler {
+            config.substeps *= 10;
+            sim.set_config(config).expect("config");
+        }
+    }
+    out
+}
+
+#[test]
+fn every_kernel_gives_the_reference_bits() {
+    let kernels: Vec<Kernel> = Kernel::ALL
+        .into_iter()
+        .filter(|k| *k != Kernel::Reference && k.is_available())
+        .collect();
+    assert!(kernels.contains(&Kernel::Portable));
+    for (name, sim) in scenes() {
+        let reference = run(sim.clone(), Kernel::Reference, 12);
+        assert!(
+            reference.contacts.iter().any(|&c| c > 0) || name.starts_with("hanging"),
+            "{name}: the scene should touch a collider"
+        );
+        for &k in &kernels {
+            let fast = run(sim.clone(), k, 12);
+            assert!(
+                fast == reference,
+                "{name}: kernel {} differs from the reference path",
+                k.name()
+            );
+        }
+    }
+}
+
+#[test]
+fn post_passes_after_the_fast_path_match_the_reference() {
+    // Strain limiting and self-collision run on the whole cloth after the fast path, and
+    // continuous collision after them.
+    for integrator in Integrator::EXPLICIT {
+        let mut sim = without_air(presets::drape(12, integrator).expect("drape"));
+        let mut config = *sim.config();
+        config.strain_limit = Some(0.05);
+        config.self_collision = Some(SelfCollision::default());
+        sim.set_config(config).expect("config");
+        let reference = run(sim.clone(), Kernel::Reference, 10);
+        let fast = run(sim, Kernel::best(), 10);
+        assert!(fast == reference, "{}", integrator.name());
+    }
+}
+
+#[test]
+fn one_two_and_three_threads_give_the_same_bits() {
+    let pool = |n: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .expect("pool")
+    };
+    for (name, sim) in scenes() {
+        let traces: Vec<Trace> = [1, 2, 3]
+            .into_iter()
+            .map(|n| {
+                let sim = sim.clone();
+                pool(n).install(|| run(sim, Kernel::best(), 8))
+            })
+            .collect();
+        assert!(traces[0] == traces[1], "{name}: 1 and 2 threads differ");
+        assert!(traces[0] == traces[2], "{name}: 1 and 3 threads differ");
+    }
+    // A taller grid, so that 2 and 3 threads really cut it into bands.
+    let sim = presets::peer_ball(48).expect("peer");
+    let traces: Vec<Trace> = [1, 2, 3]
+        .into_iter()
+        .map(|n| {
+            let sim = sim.clone();
+            pool(n).install(|| run(sim, Kernel::best(), 3))
+        })
+        .collect();
+    assert!(traces[0] == traces[1] && traces[0] == traces[2]);
+}
+
+#[test]
+fn a_degenerate_spring_falls_back_to_the_reference() {
+    // Two neighbours at the same point: the reference skips that spring; the fast path
+    // hands the substep back to it.
+    let mut sim = presets::peer_ball(10).expect("peer");
+    let mut config = *sim.config();
+    config.substeps = 400;
+    sim.set_config(config).expect("config");
+    let p = sim.particles().position[1];
+    sim.set_position(0, p).expect("position");
+    let reference = run(sim.clone(), Kernel::Reference, 1);
+    let fast = run(sim, Kernel::best(), 1);
+    assert!(fast == reference);
+}
+
+#[test]
+fn air_drag_uses_the_reference_path() {
+    let sim = presets::drape(8, Integrator::SymplecticEuler).expect("drape");
+    simd::set_kernel(None).expect("default");
+    assert_eq!(simd::kernel_for(&sim), Kernel::Reference);
+    assert_eq!(
+        simd::kernel_for(&without_air(sim)),
+        simd::kernel(),
+        "without air the fast path applies"
+    );
+}
