@@ -1,5 +1,6 @@
 //! The step loop, measured: the peer benchmark's cloth on a ball (128×128, symplectic Euler,
-//! 53 substeps of 3.125e-4 s per step) and a 64×64 drape with each integrator.
+//! 53 substeps of 3.125e-4 s per step) on the reference path and on the grid fast path with 1
+//! and 2 threads, the fast path at 32² … 512², and a 64×64 drape with each integrator.
 //!
 //! Throughput is reported in particle-substeps per second (criterion's "elements"). Every
 //! iteration steps a clone of the same prepared simulation, so runs compare.
@@ -7,6 +8,7 @@
 use std::hint::black_box;
 use std::time::Duration;
 
+use cloth_core::simd::{self, Kernel};
 use cloth_core::{Integrator, Simulation, presets};
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 
@@ -20,6 +22,22 @@ fn warmed(mut sim: Simulation, warmup: usize) -> Simulation {
 }
 
 fn bench_step(c: &mut Criterion, name: &str, sim: &Simulation) {
+    bench_on(c, name, sim, 1, None);
+}
+
+/// Measures `sim.step()` on a pool of `threads` worker threads with `kernel` (`None`: the
+/// best this CPU runs).
+fn bench_on(
+    c: &mut Criterion,
+    name: &str,
+    sim: &Simulation,
+    threads: usize,
+    kernel: Option<Kernel>,
+) {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("thread pool");
     let work = sim.particles().len() as u64 * u64::from(sim.config().substeps);
     let mut group = c.benchmark_group("step");
     group.throughput(Throughput::Elements(work));
@@ -27,18 +45,38 @@ fn bench_step(c: &mut Criterion, name: &str, sim: &Simulation) {
     group.warm_up_time(Duration::from_secs(1));
     group.measurement_time(Duration::from_secs(4));
     group.bench_function(name, |b| {
-        b.iter_batched_ref(
-            || sim.clone(),
-            |s| black_box(s.step()),
-            BatchSize::LargeInput,
-        );
+        pool.install(|| {
+            simd::set_kernel(kernel).expect("kernel available");
+            b.iter_batched_ref(
+                || sim.clone(),
+                |s| black_box(s.step()),
+                BatchSize::LargeInput,
+            );
+            simd::set_kernel(None).expect("default kernel");
+        });
     });
     group.finish();
 }
 
+/// The peer scene at 128² with the reference path and the grid fast path on 1 and 2
+/// threads, then the fast path on 2 threads at every size of the scaling series.
 fn peer_ball(c: &mut Criterion) {
     let sim = warmed(presets::peer_ball(128).expect("peer scene"), 20);
-    bench_step(c, "peer-ball-128/symplectic-euler", &sim);
+    bench_on(
+        c,
+        "peer-ball-128/reference/1t",
+        &sim,
+        1,
+        Some(Kernel::Reference),
+    );
+    bench_on(c, "peer-ball-128/fast/1t", &sim, 1, None);
+    bench_on(c, "peer-ball-128/fast/2t", &sim, 2, None);
+    for n in [32, 64, 256, 512] {
+        // Warm-up covers the same simulated time (the fall onto the ball) at every size.
+        let sim = presets::peer_ball(n).expect("peer scene");
+        let sim = warmed(sim, 20);
+        bench_on(c, &format!("peer-ball-{n}/fast/2t"), &sim, 2, None);
+    }
 }
 
 fn drape(c: &mut Criterion) {

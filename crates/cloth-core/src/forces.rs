@@ -48,7 +48,9 @@ pub(crate) fn accumulate(
                 if len <= 0.0 {
                     continue;
                 }
-                let d = l / len;
+                // One division, then products: the grid fast path uses the same operations,
+                // so both give the same bits.
+                let d = l * (1.0 / len);
                 let magnitude = k * (len - s.rest_length) + c * (velocity[b] - velocity[a]).dot(d);
                 let f = magnitude * d;
                 force[a] += f;

@@ -41,6 +41,8 @@
 // `unsafe` is denied everywhere but in `simd`, whose guarded calls of `#[target_feature]`
 // functions carry `SAFETY` comments.
 #![deny(unsafe_code)]
+// `!(x > 0.0)` is the deliberate NaN-catching test of the contact code.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 #![warn(missing_docs)]
 
 pub mod collide;

@@ -36,8 +36,14 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
+/// The tests of this file run one at a time: the counter is global.
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 #[test]
 fn steps_after_the_first_do_not_allocate() {
+    let _serial = SERIAL
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     for integrator in Integrator::ALL {
         let mut sim = presets::drape(16, integrator).expect("drape");
         let mut config = *sim.config();
@@ -62,5 +68,51 @@ fn steps_after_the_first_do_not_allocate() {
             "{integrator:?} allocated {} times in 20 steps",
             after - before
         );
+    }
+}
+
+/// The explicit integrators' grid fast path (air off) on a pool of 2 threads: still no
+/// allocation after the first step (the bands' buffers and the next-state arrays are kept).
+#[test]
+fn threaded_fast_path_steps_do_not_allocate() {
+    let _serial = SERIAL
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("pool");
+    for integrator in Integrator::EXPLICIT {
+        let mut sim = presets::drape(32, integrator).expect("drape");
+        let mut config = *sim.config();
+        config.air.density = 0.0;
+        if integrator == Integrator::ForwardEuler {
+            // Forward Euler gains energy every substep: small ones keep it stable here.
+            config.substeps *= 10;
+        }
+        sim.set_config(config).expect("config");
+        sim.pin(0).expect("pin");
+        pool.install(|| {
+            assert_ne!(
+                cloth_core::simd::kernel_for(&sim),
+                cloth_core::simd::Kernel::Reference
+            );
+            for _ in 0..2 {
+                sim.step().expect("warm-up");
+            }
+            let before = ALLOCATIONS.load(Ordering::Relaxed);
+            for k in 0..20 {
+                sim.set_pin_target(0, Vec3::new(-0.6, 0.55 + 0.01 * k as f32, -0.6))
+                    .expect("target");
+                sim.step().expect("step");
+            }
+            let after = ALLOCATIONS.load(Ordering::Relaxed);
+            assert_eq!(
+                after - before,
+                0,
+                "{integrator:?} on 2 threads allocated {} times in 20 steps",
+                after - before
+            );
+        });
     }
 }

@@ -19,7 +19,7 @@
 //! exact identity: `x + (−0.0) == x` and `x − (+0.0) == x` for every `x`, so the padding of
 //! the ring buffers holds −0.0 where a term is added and +0.0 where it is subtracted. Every
 //! spring force uses the reference's operations in the reference's order (no fused
-//! multiply-add, IEEE `sqrt` and division), so **the fast path is bit-identical to the
+//! multiply-add, IEEE `sqrt` and one division per spring), so **the fast path is bit-identical to the
 //! reference path**, for every kernel (portable, AVX2, AVX-512) and every number of threads.
 //! The one reference case not reproduced, a spring of zero length (skipped by the reference),
 //! is detected and the substep is redone by the reference path.
@@ -318,6 +318,9 @@ pub(crate) struct Job<'a> {
     ccd: bool,
 }
 
+/// A band with its rows of the next state, as the parallel iterator hands them out.
+type BandItem<'a> = (usize, ((&'a mut Band, &'a mut [Vec3]), &'a mut [Vec3]));
+
 /// What a band reports.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct BandResult {
@@ -383,7 +386,7 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         ccd: plan.ccd,
     };
     let chunk = band_rows * cols;
-    let run = |(i, ((band, px), pv)): (usize, ((&mut Band, &mut [Vec3]), &mut [Vec3]))| {
+    let run = |(i, ((band, px), pv)): BandItem<'_>| {
         let r0 = i * band_rows;
         let r1 = (r0 + band_rows).min(rows);
         simd::run_band(plan.kernel, &job, r0, r1, band, px, pv)
@@ -454,11 +457,10 @@ pub(crate) fn band(
     }
     for s in first..r1 {
         // Springs whose first end is in row s.
-        for class in 0..6 {
+        for (class, &(dr, a_dc, b_dc, _)) in CLASSES.iter().enumerate() {
             let Some((k, c)) = job.params[class] else {
                 continue;
             };
-            let (dr, a_dc, b_dc, _) = CLASSES[class];
             if s + dr >= rows {
                 continue;
             }
@@ -676,7 +678,8 @@ fn springs(
             let ly = by[j] - ay[j];
             let lz = bz[j] - az[j];
             let len = (lx * lx + ly * ly + lz * lz).sqrt();
-            let (dx, dy, dz) = (lx / len, ly / len, lz / len);
+            let inv = 1.0 / len;
+            let (dx, dy, dz) = (lx * inv, ly * inv, lz * inv);
             let (wx, wy, wz) = (bvx[j] - avx[j], bvy[j] - avy[j], bvz[j] - avz[j]);
             let magnitude = k * (len - rest[j]) + c * (wx * dx + wy * dy + wz * dz);
             let ok = len > 0.0;
