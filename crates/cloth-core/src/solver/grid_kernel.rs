@@ -775,57 +775,92 @@ fn integrate_component(
     out_v: &mut [f32],
 ) {
     let n = x.len();
-    let (mass, w, v, out_x, out_v) = (
-        &mass[..n],
-        &w[..n],
-        &v[..n],
-        &mut out_x[..n],
-        &mut out_v[..n],
-    );
-    let [t0, t1, t2, t3, t4, t5, t6, t7, t8, t9, t10, t11] = t.map(|s| &s[..n]);
+    let (mass, w, v) = (&mass[..n], &w[..n], &v[..n]);
+    let t = t.map(|s| &s[..n]);
+    let args = (h, g, damping, mass, w, x, v, t);
+    match scheme {
+        Scheme::Forward => integrate_lanes::<FORWARD>(args, out_x, out_v),
+        Scheme::Symplectic => integrate_lanes::<SYMPLECTIC>(args, out_x, out_v),
+        Scheme::Verlet => integrate_lanes::<VERLET>(args, out_x, out_v),
+    }
+}
+
+const FORWARD: u8 = 0;
+const SYMPLECTIC: u8 = 1;
+const VERLET: u8 = 2;
+
+/// The arguments of [`integrate_component`] past the scheme: h, g, d, mass, 1/m, x, v and the
+/// 12 terms.
+type IntegrateArgs<'a> = (
+    f32,
+    f32,
+    f32,
+    &'a [f32],
+    &'a [f32],
+    &'a [f32],
+    &'a [f32],
+    [&'a [f32]; 12],
+);
+
+/// [`integrate_component`] for scheme `S`: whole chunks of LANES particles on local arrays
+/// (vectorised without run-time alias checks), then the remainder one by one, with the same
+/// operations.
+#[inline(always)]
+fn integrate_lanes<const S: u8>(args: IntegrateArgs<'_>, out_x: &mut [f32], out_v: &mut [f32]) {
+    let (h, g, damping, mass, w, x, v, t) = args;
+    let n = x.len();
     let half = 0.5 * h;
-    // The force on particle c: m·g − d·v, then the spring terms in the reference's order
-    // (a macro rather than a closure, so that it is always inlined into the vector loop).
-    macro_rules! force {
-        ($c:expr) => {{
-            let c = $c;
-            let mut f = mass[c] * g - damping * v[c];
-            f -= t0[c];
-            f += t1[c];
-            f -= t2[c];
-            f += t3[c];
-            f -= t4[c];
-            f -= t5[c];
-            f += t6[c];
-            f += t7[c];
-            f -= t8[c];
-            f -= t9[c];
-            f += t10[c];
-            f += t11[c];
-            f
+    // Particle c: m·g − d·v, the spring terms in the reference's order, then the update.
+    // (A macro, not a closure: always inlined into the vector loop.)
+    macro_rules! one {
+        ($mass:expr, $w:expr, $x:expr, $v:expr, $t:expr) => {{
+            let (mass, w, x, v, t): (f32, f32, f32, f32, [f32; 12]) = ($mass, $w, $x, $v, $t);
+            let mut f = mass * g - damping * v;
+            f -= t[0];
+            f += t[1];
+            f -= t[2];
+            f += t[3];
+            f -= t[4];
+            f -= t[5];
+            f += t[6];
+            f += t[7];
+            f -= t[8];
+            f -= t[9];
+            f += t[10];
+            f += t[11];
+            let hw = h * w;
+            match S {
+                FORWARD => (x + h * v, v + hw * f),
+                SYMPLECTIC => {
+                    let nv = v + hw * f;
+                    (x + h * nv, nv)
+                }
+                _ => {
+                    let nv = v + hw * f;
+                    (x + half * nv, nv)
+                }
+            }
         }};
     }
-    match scheme {
-        Scheme::Symplectic => {
-            for c in 0..n {
-                let nv = v[c] + (h * w[c]) * force!(c);
-                out_v[c] = nv;
-                out_x[c] = x[c] + h * nv;
-            }
+    let mut c0 = 0;
+    while c0 + LANES <= n {
+        let (m, wl, xl, vl) = (lanes(mass, c0), lanes(w, c0), lanes(x, c0), lanes(v, c0));
+        let tl = t.map(|s| lanes(s, c0));
+        let (mut ox, mut ov) = ([0.0; LANES], [0.0; LANES]);
+        for j in 0..LANES {
+            let terms = [
+                tl[0][j], tl[1][j], tl[2][j], tl[3][j], tl[4][j], tl[5][j], tl[6][j], tl[7][j],
+                tl[8][j], tl[9][j], tl[10][j], tl[11][j],
+            ];
+            (ox[j], ov[j]) = one!(m[j], wl[j], xl[j], vl[j], terms);
         }
-        Scheme::Forward => {
-            for c in 0..n {
-                out_x[c] = x[c] + h * v[c];
-                out_v[c] = v[c] + (h * w[c]) * force!(c);
-            }
-        }
-        Scheme::Verlet => {
-            for c in 0..n {
-                let nv = v[c] + (h * w[c]) * force!(c);
-                out_v[c] = nv;
-                out_x[c] = x[c] + half * nv;
-            }
-        }
+        out_x[c0..c0 + LANES].copy_from_slice(&ox);
+        out_v[c0..c0 + LANES].copy_from_slice(&ov);
+        c0 += LANES;
+    }
+    for c in c0..n {
+        let terms = t.map(|s| s[c]);
+        (out_x[c], out_v[c]) = one!(mass[c], w[c], x[c], v[c], terms);
     }
 }
 
