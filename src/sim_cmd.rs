@@ -67,6 +67,10 @@ pub struct SimArgs {
     /// force in a fixed order (recorded in the report, with the kernel that ran).
     #[arg(long, value_name = "N", default_value = "1", value_parser = parse_threads)]
     pub threads: usize,
+    /// The explicit integrators' kernel: reference, portable, avx2 or avx512 (default: the
+    /// widest this CPU runs). All give the same bits; for measuring them against each other.
+    #[arg(long, value_name = "NAME", value_parser = parse_kernel)]
+    pub kernel: Option<cloth_core::simd::Kernel>,
     #[arg(
         long = "set",
         value_name = "KEY=VALUE",
@@ -130,6 +134,19 @@ fn parse_seconds(s: &str) -> Result<f64, String> {
         .ok()
         .filter(|v| v.is_finite() && *v > 0.0 && *v <= 1e6)
         .ok_or_else(|| "allowed a number of seconds in (0, 1e6]".into())
+}
+
+fn parse_kernel(s: &str) -> Result<cloth_core::simd::Kernel, String> {
+    use cloth_core::simd::Kernel;
+    let k = Kernel::ALL
+        .into_iter()
+        .find(|k| k.name() == s)
+        .ok_or_else(|| "allowed: reference, portable, avx2, avx512".to_string())?;
+    if k.is_available() {
+        Ok(k)
+    } else {
+        Err(format!("this CPU cannot run the {s} kernel"))
+    }
 }
 
 fn parse_threads(s: &str) -> Result<usize, String> {
@@ -384,7 +401,11 @@ fn run(args: &SimArgs) -> Result<ExitCode> {
         .num_threads(args.threads)
         .build()
         .context("starting the worker threads")?;
-    pool.install(|| run_on_pool(args))
+    pool.install(|| {
+        // The kernel choice is per thread: made on the pool's thread that steps.
+        cloth_core::simd::set_kernel(args.kernel)?;
+        run_on_pool(args)
+    })
 }
 
 fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
