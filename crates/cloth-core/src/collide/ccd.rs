@@ -23,7 +23,7 @@
 //!    discrete pass. A particle that the discrete pass already put on the correct side is
 //!    left alone, so resting and sliding contacts are unchanged.
 //!
-//! 5. Last, [`project`] puts back on the contact surface any particle that a pass after the
+//! 5. Last, `project` puts back on the contact surface any particle that a pass after the
 //!    integrator's own contact handling (strain limiting, self-collision) pushed into the
 //!    contact layer, so that every substep starts with the particles outside the solids.
 //!
