@@ -81,7 +81,7 @@ pub(crate) fn resolve_in(
         } else {
             Some(Quat::from_scaled_axis(col.angular_velocity * h))
         };
-        let tau = (0.25 * col.thickness).max(1e-4);
+        let tau = tolerance(col);
         let (mu_s, mu_k) = (
             col.friction.static_coefficient,
             col.friction.kinetic_coefficient,
@@ -160,6 +160,14 @@ pub(crate) fn resolve_in(
         }
     }
     corrected
+}
+
+/// How far behind the entry point a particle must end to count as having gone through
+/// `col`, m: `max(thickness / 4, 0.1 mm)`. A path shorter than this can never be corrected
+/// (every point of the path is within its length of the end), which the grid fast path uses
+/// to skip the pass for slow particles.
+pub(crate) fn tolerance(col: &Collider) -> f32 {
+    (0.25 * col.thickness).max(1e-4)
 }
 
 /// Depth below the contact surface that [`project`] tolerates, m (rounding of the contact

@@ -316,6 +316,11 @@ pub(crate) struct Job<'a> {
     minus_zero: &'a [f32],
     colliders: &'a [Collider],
     ccd: bool,
+    /// Continuous collision cannot change a particle whose path over the substep is shorter
+    /// than every collider's [`ccd::tolerance`] (halved, for rounding): this is that length
+    /// when every collider is still (then the path relative to each collider is the particle's
+    /// own), else 0 (no particle skipped).
+    ccd_min_path: f32,
 }
 
 /// A band with its rows of the next state, as the parallel iterator hands them out.
@@ -384,6 +389,19 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         minus_zero: &scratch.minus_zero,
         colliders: ctx.colliders,
         ccd: plan.ccd,
+        ccd_min_path: if ctx
+            .colliders
+            .iter()
+            .all(|c| c.velocity == Vec3::ZERO && c.angular_velocity == Vec3::ZERO)
+        {
+            0.5 * ctx
+                .colliders
+                .iter()
+                .map(ccd::tolerance)
+                .fold(f32::INFINITY, f32::min)
+        } else {
+            0.0
+        },
     };
     let chunk = band_rows * cols;
     let run = |(i, ((band, px), pv)): BandItem<'_>| {
@@ -568,7 +586,28 @@ fn contacts_row(
         let (x, v, w, a) = (&mut px[i..j], &mut pv[i..j], &w[i..j], &start[i..j]);
         result.contacts += resolve_contacts_in(job.colliders, x, v, w, pos_weight);
         if job.ccd {
-            result.ccd += ccd::resolve_in(job.colliders, a, x, v, w, job.h);
+            // Continuous collision only on the particles whose path is long enough for it to
+            // change anything (see `Job::ccd_min_path`); each particle is on its own.
+            let mut k = 0;
+            while k < x.len() {
+                if (x[k] - a[k]).length() < job.ccd_min_path {
+                    k += 1;
+                    continue;
+                }
+                let mut l = k + 1;
+                while l < x.len() && (x[l] - a[l]).length() >= job.ccd_min_path {
+                    l += 1;
+                }
+                result.ccd += ccd::resolve_in(
+                    job.colliders,
+                    &a[k..l],
+                    &mut x[k..l],
+                    &mut v[k..l],
+                    &w[k..l],
+                    job.h,
+                );
+                k = l;
+            }
             ccd::project_in(job.colliders, x, v, w);
         }
         i = j;
