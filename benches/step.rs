@@ -72,9 +72,11 @@ fn peer_ball(c: &mut Criterion) {
     bench_on(c, "peer-ball-128/fast/1t", &sim, 1, None);
     bench_on(c, "peer-ball-128/fast/2t", &sim, 2, None);
     for n in [32, 64, 256, 512] {
-        // Warm-up covers the same simulated time (the fall onto the ball) at every size.
+        // Warm-up covers the same simulated time (the fall onto the ball) at every size but
+        // 32² and 64², where the peer's parameters blow up symplectic Euler within about 16
+        // steps (the peers reset the cloth then): those are measured from the flat start.
         let sim = presets::peer_ball(n).expect("peer scene");
-        let sim = warmed(sim, 20);
+        let sim = warmed(sim, if n <= 64 { 0 } else { 20 });
         bench_on(c, &format!("peer-ball-{n}/fast/2t"), &sim, 2, None);
     }
 }
