@@ -55,8 +55,9 @@ mod sim;
 mod solver;
 pub mod topology;
 
+pub use collide::intersect::SelfContact;
 pub use collide::self_collision::SelfCollision;
-pub use collide::{Collider, Friction, Shape};
+pub use collide::{Collider, Friction, Shape, TriMesh};
 pub use config::{
     Air, ForceSwitches, Gust, ImplicitSettings, Integrator, Material, SimConfig, SpringParams,
     StabilityLimits, XpbdSettings,

@@ -58,6 +58,8 @@ pub struct Simulation {
     stats: StepStats,
     /// Positions of the cloth as built (its rest shape), for tethers.
     rest_position: Vec<Vec3>,
+    /// Scratch of the self-contact diagnostics.
+    contact_check: crate::collide::intersect::SelfContactCheck,
 }
 
 /// Everything that changes while a simulation runs: enough to continue it later to the same
@@ -210,6 +212,7 @@ impl Simulation {
             steps: 0,
             stats: StepStats::default(),
             rest_position: Vec::new(),
+            contact_check: Default::default(),
         };
         sim.rest_position.clone_from(&sim.particles.position);
         sim.refresh_stats();
@@ -402,6 +405,36 @@ impl Simulation {
             .filter(|&(_, &w)| w == 0.0)
             .map(|(i, _)| (i as u32, -force[i]))
             .collect()
+    }
+
+    /// Self-contact diagnostics of the cloth now: the exact number of intersecting triangle
+    /// pairs (sharing no vertex) and the smallest distance from a particle to a triangle that
+    /// is not its neighbour, looking within `range` m (see [`crate::collide::intersect`]).
+    /// `range` defaults to the self-collision thickness when `None`, or to the cloth's
+    /// largest rest spacing when self-collision is off. Not allocating after the first call.
+    pub fn self_contact(&mut self, range: Option<f32>) -> crate::collide::intersect::SelfContact {
+        let range = range.unwrap_or_else(|| match self.config.self_collision {
+            Some(sc) => sc.thickness,
+            None => self
+                .topology
+                .springs_of(crate::topology::SpringKind::Warp)
+                .iter()
+                .chain(self.topology.springs_of(crate::topology::SpringKind::Weft))
+                .map(|s| s.rest_length)
+                .fold(0.0, f32::max),
+        });
+        self.contact_check.run(
+            &self.particles.position,
+            &self.rest_position,
+            self.topology.triangles(),
+            range,
+        )
+    }
+
+    /// The rest shape: the positions of the cloth as built, m.
+    #[must_use]
+    pub fn rest_positions(&self) -> &[Vec3] {
+        &self.rest_position
     }
 
     /// Total force of the springs, dashpots, damping and air on each particle right now
