@@ -139,6 +139,10 @@ impl SelfCollisionScratch {
         self.hash.build(&particles.position, radius);
         let inv = 1.0 / radius;
         self.pairs.clear();
+        // Room for 12 candidate pairs per particle (a flat sheet has about 6 within R, two
+        // layers in contact about 12), so that a step does not allocate after the first
+        // unless the cloth is heaped denser than that.
+        self.pairs.reserve(12 * n);
         let r2 = radius * radius;
         for i in 0..n {
             let first = self.pairs.len();
