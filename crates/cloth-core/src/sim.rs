@@ -62,6 +62,26 @@ pub struct Simulation {
     contact_check: crate::collide::intersect::SelfContactCheck,
 }
 
+/// A contact found by [`Simulation::contacts`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Contact {
+    /// The particle in contact.
+    pub particle: u32,
+    /// Unit normal pushing the particle out of the contact.
+    pub normal: Vec3,
+    /// What it touches.
+    pub with: ContactWith,
+}
+
+/// What a particle touches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ContactWith {
+    /// The collider with this index.
+    Collider(u32),
+    /// Another particle of the cloth (self-contact).
+    Cloth(u32),
+}
+
 /// Everything that changes while a simulation runs: enough to continue it later to the same
 /// bits (a checkpoint). The scene (cloth, parameters, colliders' shapes and motions) is not
 /// included: restore a state into a simulation built from the same scene.
@@ -429,6 +449,39 @@ impl Simulation {
             self.topology.triangles(),
             range,
         )
+    }
+
+    /// The contacts of the current state, for display and inspection (appended to `out`):
+    /// every free particle within the contact layer of a collider (distance to the surface at
+    /// most the thickness plus 10 % of it plus 0.1 mm), with the collider's outward normal,
+    /// and, with self-collision on, every pair of particles closer than 1.05 × the
+    /// self-collision thickness that were further apart than that in the rest shape (layers
+    /// touching, not neighbours), with the unit vector from the other particle to this one.
+    pub fn contacts(&self, out: &mut Vec<Contact>) {
+        for (ci, col) in self.colliders.iter().enumerate() {
+            let reach = 1.1 * col.thickness + 1e-4;
+            for (i, &x) in self.particles.position.iter().enumerate() {
+                if self.particles.inv_mass[i] == 0.0 {
+                    continue;
+                }
+                let (d, n) = col.shape.distance_within(x, col.contact_range());
+                if d <= reach && n != Vec3::ZERO {
+                    out.push(Contact {
+                        particle: i as u32,
+                        normal: n,
+                        with: ContactWith::Collider(ci as u32),
+                    });
+                }
+            }
+        }
+        if let Some(sc) = self.config.self_collision {
+            self.solver.self_contacts(
+                &self.particles.position,
+                &self.rest_position,
+                1.05 * sc.thickness,
+                out,
+            );
+        }
     }
 
     /// The rest shape: the positions of the cloth as built, m.

@@ -208,3 +208,47 @@ fn resting_contact_does_not_buzz() {
         );
     }
 }
+
+/// `Simulation::contacts` (what the viewer's contact toggle draws): a cloth lying on the
+/// ground touches it with every particle along +y; the settled `pile` has cloth–cloth
+/// contacts, listed from both ends, between particles closer than 1.05 × the thickness.
+#[test]
+fn contacts_list_collider_and_layer_contacts() {
+    let mut scene = builtin("drape").expect("drape");
+    scene.colliders.remove(0);
+    scene.cloth.resolution = [12, 12];
+    let mut sim = scene.build().expect("build");
+    for _ in 0..90 {
+        sim.step().expect("step");
+    }
+    let mut contacts = Vec::new();
+    sim.contacts(&mut contacts);
+    assert_eq!(contacts.len(), 144, "every particle on the ground");
+    for c in &contacts {
+        assert_eq!(c.with, cloth_core::ContactWith::Collider(0));
+        assert!(c.normal.distance(Vec3::Y) < 1e-6);
+    }
+
+    let scene = builtin("pile").expect("pile");
+    let mut sim = scene.build().expect("build");
+    for _ in 0..120 {
+        sim.step().expect("step");
+    }
+    let thickness = sim.config().self_collision.expect("on").thickness;
+    contacts.clear();
+    sim.contacts(&mut contacts);
+    let layer: Vec<_> = contacts
+        .iter()
+        .filter_map(|c| match c.with {
+            cloth_core::ContactWith::Cloth(j) => Some((c.particle, j)),
+            cloth_core::ContactWith::Collider(_) => None,
+        })
+        .collect();
+    assert!(!layer.is_empty(), "the heap has layers in contact");
+    assert_eq!(layer.len() % 2, 0);
+    for &(i, j) in &layer {
+        let d = sim.particles().position[i as usize].distance(sim.particles().position[j as usize]);
+        assert!(d < 1.05 * thickness, "{i}-{j}: {d}");
+        assert!(layer.contains(&(j, i)));
+    }
+}

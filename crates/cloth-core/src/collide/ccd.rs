@@ -85,7 +85,7 @@ pub(crate) fn resolve(
             let b = *x;
             let path = b - a;
             let len = path.length();
-            if !(len > 0.0) {
+            if len.is_nan() || len <= 0.0 {
                 continue;
             }
             // 2. cull: φ(a) ≥ φ(b) − |b − a|, so φ(b) ≥ |b − a| alone implies the test

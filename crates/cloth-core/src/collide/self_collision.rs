@@ -117,6 +117,41 @@ pub(crate) struct SelfCollisionScratch {
 }
 
 impl SelfCollisionScratch {
+    /// Pairs of the candidate list closer than `reach` that were at least `reach` apart in the
+    /// rest shape (layers touching, not neighbours), as contacts of both particles.
+    pub(crate) fn contacts(
+        &self,
+        position: &[Vec3],
+        rest: &[Vec3],
+        reach: f32,
+        out: &mut Vec<crate::sim::Contact>,
+    ) {
+        use crate::sim::{Contact, ContactWith};
+        for &(i, j, _) in &self.pairs {
+            let (iu, ju) = (i as usize, j as usize);
+            if iu >= position.len() || ju >= position.len() {
+                continue;
+            }
+            let d = position[iu] - position[ju];
+            let len = d.length();
+            // Rest neighbours (closer than `reach` in the rest shape) are not layer contacts.
+            if len >= reach || rest[iu].distance(rest[ju]) < reach || len == 0.0 {
+                continue;
+            }
+            let n = d / len;
+            out.push(Contact {
+                particle: i,
+                normal: n,
+                with: ContactWith::Cloth(j),
+            });
+            out.push(Contact {
+                particle: j,
+                normal: -n,
+                with: ContactWith::Cloth(i),
+            });
+        }
+    }
+
     /// Makes sure the pair list covers every pair that can be closer than `thickness` now.
     fn refresh(&mut self, particles: &Particles, rest: &[Vec3], thickness: f32) {
         let margin = 0.5 * thickness;
