@@ -25,7 +25,7 @@
 //!    left alone, so resting and sliding contacts are unchanged.
 //!
 //! 5. Last, when a pass runs after the integrator's own contact handling (strain limiting or
-//!    self-collision with the force-based integrators), [`project`] puts back on the contact
+//!    self-collision with the force-based integrators), `project` puts back on the contact
 //!    surface any particle it pushed into the contact layer, so that every substep starts
 //!    with the particles outside the solids.
 //!

@@ -1,7 +1,7 @@
 //! Cloth–cloth contact: particles keep a thickness from each other (particle–particle
 //! repulsion, as in Ten Minute Physics' self-collision), found with a spatial hash and a cached
 //! list of candidate pairs that is rebuilt only when particles have moved far enough to need
-//! it (see [`SelfCollisionScratch`]).
+//! it (see `SelfCollisionScratch`).
 //!
 //! A pair of particles closer than d_min = min(thickness, rest distance) is pushed apart to
 //! d_min along the line between them, mass-weighted (a pinned particle does not move). Taking
