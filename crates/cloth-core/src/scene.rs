@@ -746,7 +746,8 @@ impl Scene {
     }
 
     /// Reads the OBJ file of every mesh collider, relative to the directory of `file` (the
-    /// scene's path); the meshes of the built-in scenes are built in.
+    /// scene's path); the meshes of the built-in scenes are built in (and found by their
+    /// name, e.g. `meshes/table.obj`, when no such file exists next to the scene).
     ///
     /// # Errors
     /// [`ClothError::Scene`] naming `colliders[i].file` when a file cannot be read or is not
@@ -765,8 +766,19 @@ impl Scene {
             };
             let path = dir.join(name);
             let shown = path.to_string_lossy().replace('\\', "/");
-            let mesh = match BUILTIN_MESHES.iter().find(|(n, _)| *n == shown) {
+            // A built-in mesh by its path, else the file, else a built-in mesh the name
+            // refers to (a saved copy of a built-in scene, written elsewhere).
+            let builtin = |key: &str| BUILTIN_MESHES.iter().find(|(n, _)| *n == key);
+            let suffix = format!("/{}", name.trim_start_matches("./"));
+            let mesh = match builtin(&shown) {
                 Some((_, text)) => crate::collide::TriMesh::from_obj_str(text, &shown),
+                None if !path.exists() => match BUILTIN_MESHES
+                    .iter()
+                    .find(|(n, _)| n.ends_with(&suffix))
+                {
+                    Some((n, text)) => crate::collide::TriMesh::from_obj_str(text, n),
+                    None => crate::collide::TriMesh::from_obj(&path),
+                },
                 None => crate::collide::TriMesh::from_obj(&path),
             }
             .map_err(|e| scene_error(file, None, &key, e.to_string()))?;
