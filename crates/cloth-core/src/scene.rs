@@ -772,13 +772,12 @@ impl Scene {
             let suffix = format!("/{}", name.trim_start_matches("./"));
             let mesh = match builtin(&shown) {
                 Some((_, text)) => crate::collide::TriMesh::from_obj_str(text, &shown),
-                None if !path.exists() => match BUILTIN_MESHES
-                    .iter()
-                    .find(|(n, _)| n.ends_with(&suffix))
-                {
-                    Some((n, text)) => crate::collide::TriMesh::from_obj_str(text, n),
-                    None => crate::collide::TriMesh::from_obj(&path),
-                },
+                None if !path.exists() => {
+                    match BUILTIN_MESHES.iter().find(|(n, _)| n.ends_with(&suffix)) {
+                        Some((n, text)) => crate::collide::TriMesh::from_obj_str(text, n),
+                        None => crate::collide::TriMesh::from_obj(&path),
+                    }
+                }
                 None => crate::collide::TriMesh::from_obj(&path),
             }
             .map_err(|e| scene_error(file, None, &key, e.to_string()))?;

@@ -861,7 +861,7 @@ const GOLDEN: [(Integrator, u64); 5] = [
     (Integrator::ForwardEuler, 0x989b_ff71_893c_5280),
     (Integrator::SymplecticEuler, 0x8e67_a0f9_e07e_22dd),
     (Integrator::Verlet, 0xe589_49ef_567d_ea2d),
-    (Integrator::ImplicitEuler, 0x3785_2311_b299_070e),
+    (Integrator::ImplicitEuler, 0x04e4_8de5_c060_448a),
     (Integrator::Xpbd, 0x89ab_2b6a_f3ee_c2de),
 ];
 
