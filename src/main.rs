@@ -33,7 +33,7 @@ Examples:
 Viewer controls: left-drag on the cloth grabs it, elsewhere orbits; right/middle-drag pans;
 wheel zooms; Ctrl/Shift-click pins or unpins; Space pause, N single step, R reset,
 C orbit/fly camera (fly: WASD, Q/E down/up, Shift faster, right-drag looks), W wireframe,
-Home reset view, Esc quit.
+K contacts, Home reset view, Esc quit.
 
 Without a GPU, rendering needs Mesa's software renderer and, for the window, a display (or
 `xvfb-run -a cloth view`). Exit status: 0 ok, 1 failure (no adapter, no display, I/O),
@@ -74,6 +74,9 @@ enum Command {
         /// Draw the springs, coloured by class (structural orange, shear green, bend blue).
         #[arg(long)]
         springs: bool,
+        /// Draw the contacts (cyan: particle–collider normals; magenta: cloth–cloth pairs).
+        #[arg(long)]
+        contacts: bool,
     },
     /// Open the interactive viewer.
     View {
@@ -162,6 +165,7 @@ fn main() -> ExitCode {
             size,
             wireframe,
             springs,
+            contacts,
         } => {
             let chosen = match scene.load() {
                 Ok(c) => c,
@@ -170,6 +174,7 @@ fn main() -> ExitCode {
             let mut options = cloth_view::default_options(&chosen.scene);
             options.wireframe = wireframe;
             options.springs = springs;
+            options.contacts = contacts;
             render(&chosen, frames, &png, size, &options)
         }
         Command::View {

@@ -272,6 +272,15 @@ struct FrameRecord {
     max_strain: Strain,
     max_penetration: f32,
     contacts: u32,
+    #[serde(default)]
+    ccd_corrections: u32,
+    /// Intersecting triangle pairs (exact count); only with self-collision on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    self_intersections: Option<u32>,
+    /// Smallest particle–non-neighbour-triangle distance within the self-collision
+    /// thickness, m (null: none that close); only with self-collision on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    min_self_distance: Option<Option<f32>>,
     solver_iterations: u32,
     solver_residual: f32,
     solver_converged: bool,
@@ -299,6 +308,9 @@ impl FrameRecord {
             },
             max_penetration: s.max_penetration,
             contacts: s.contacts,
+            ccd_corrections: s.ccd_corrections,
+            self_intersections: None,
+            min_self_distance: None,
             solver_iterations: s.solver.iterations,
             solver_residual: s.solver.residual,
             solver_converged: s.solver.converged,
@@ -538,6 +550,11 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
 
     let mut normals = Vec::new();
     let mut status = Status::Ok;
+    let mut max_self_intersections = records
+        .iter()
+        .filter_map(|r| r.self_intersections)
+        .max()
+        .unwrap_or(0);
     let wall_start = Instant::now();
     // Wall time of each frame's step (this run's frames only), for the median-frame figure.
     let mut frame_wall = Vec::new();
@@ -569,7 +586,20 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
             Err(e) => return Err(e.into()),
         };
         frame += 1;
-        records.push(FrameRecord::new(frame, &stats));
+        let mut record = FrameRecord::new(frame, &stats);
+        if cfg.self_collision.is_some() {
+            // Outside the stepping time: a diagnostic of the frame, not part of the step.
+            let contact = sim.self_contact(None);
+            record.self_intersections = Some(contact.self_intersections);
+            record.min_self_distance = Some(
+                contact
+                    .min_distance
+                    .is_finite()
+                    .then_some(contact.min_distance),
+            );
+            max_self_intersections = max_self_intersections.max(contact.self_intersections);
+        }
+        records.push(record);
         if args.table_every > 0 && (frame % args.table_every == 0 || frame == frames_total) {
             let line = format!(
                 "{:>6} {:>8.3} {:>12.5e} {:>12.5e} {:>10.4} {:>10.4} {:>10.4} {:>9.2e} {:>8}",
@@ -698,6 +728,11 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         args.threads,
         kernel.name()
     );
+    if cfg.self_collision.is_some() {
+        println!(
+            "self-contact: at most {max_self_intersections} intersecting triangle pairs in a frame"
+        );
+    }
     if let Status::Unstable { .. } = status {
         eprintln!("error: the simulation became unstable: {status_line}");
     }

@@ -60,8 +60,9 @@ pub mod simd;
 mod solver;
 pub mod topology;
 
+pub use collide::intersect::SelfContact;
 pub use collide::self_collision::SelfCollision;
-pub use collide::{Collider, Friction, Shape};
+pub use collide::{Collider, Friction, Shape, TriMesh};
 pub use config::{
     Air, ForceSwitches, Gust, ImplicitSettings, Integrator, Material, SimConfig, SpringParams,
     StabilityLimits, XpbdSettings,
@@ -71,7 +72,7 @@ pub use error::{ClothError, Result};
 pub use glam;
 pub use grid::{Cloth, Corner, Edge, GridBuilder, Mass, Orientation};
 pub use particles::Particles;
-pub use sim::{SimState, Simulation};
+pub use sim::{Contact, ContactWith, SimState, Simulation};
 pub use topology::{Spring, SpringClass, SpringKind, Topology};
 
 /// The README's examples, compiled and run as doc-tests.

@@ -345,15 +345,23 @@ impl Default for EnabledDesc {
 }
 
 /// `[[colliders]]`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ColliderDesc {
-    /// `"sphere"` or `"plane"`.
+    /// `"sphere"`, `"plane"`, `"capsule"`, `"box"` or `"mesh"`.
     #[serde(rename = "type")]
     pub kind: ColliderKind,
-    /// Sphere centre, m.
+    /// Sphere or box centre; a mesh's position (where its origin goes), m.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub center: Option<[f32; 3]>,
+    /// A mesh's Wavefront OBJ file, relative to the scene file (triangles counter-clockwise
+    /// seen from outside).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub file: Option<String>,
+    /// The mesh read from `file` (filled by [`Scene::from_toml`] or
+    /// [`Scene::load_meshes`]).
+    #[serde(skip)]
+    pub mesh: Option<std::sync::Arc<crate::collide::TriMesh>>,
     /// Sphere radius, m, `> 0`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radius: Option<f32>,
@@ -372,7 +380,7 @@ pub struct ColliderDesc {
     /// Box half side lengths, m, each `> 0`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub half_extents: Option<[f32; 3]>,
-    /// Box orientation as XYZ Euler angles, degrees. Default `[0, 0, 0]`.
+    /// Box or mesh orientation as XYZ Euler angles, degrees. Default `[0, 0, 0]`.
     #[serde(default)]
     pub rotation: [f32; 3],
     /// Angular velocity about the pivot (centre; capsule midpoint; plane point), rad/s.
@@ -403,6 +411,7 @@ pub enum ColliderKind {
     Plane,
     Capsule,
     Box,
+    Mesh,
 }
 
 /// `friction = { static, kinetic }`.
@@ -719,12 +728,62 @@ impl Scene {
                     .into(),
             ));
         }
-        let scene: Scene = toml::from_str(source).map_err(|e| de_error(source, file, &e))?;
+        let mut scene: Scene = toml::from_str(source).map_err(|e| de_error(source, file, &e))?;
         if let Err(bad) = scene.check() {
             let pos = span_of(source, &bad.key).map(|s| line_col(source, s.start));
             return Err(scene_error(file, pos, &bad.key, bad.message));
         }
+        scene.load_meshes(file).map_err(|e| match e {
+            ClothError::Scene {
+                file, key, message, ..
+            } => {
+                let pos = span_of(source, &key).map(|s| line_col(source, s.start));
+                scene_error(&file, pos, &key, message)
+            }
+            other => other,
+        })?;
         Ok(scene)
+    }
+
+    /// Reads the OBJ file of every mesh collider, relative to the directory of `file` (the
+    /// scene's path); the meshes of the built-in scenes are built in (and found by their
+    /// name, e.g. `meshes/table.obj`, when no such file exists next to the scene).
+    ///
+    /// # Errors
+    /// [`ClothError::Scene`] naming `colliders[i].file` when a file cannot be read or is not
+    /// a valid mesh.
+    pub fn load_meshes(&mut self, file: &str) -> Result<()> {
+        let dir = std::path::Path::new(file)
+            .parent()
+            .unwrap_or(std::path::Path::new(""));
+        for (i, col) in self.colliders.iter_mut().enumerate() {
+            if col.kind != ColliderKind::Mesh {
+                continue;
+            }
+            let key = format!("colliders[{i}].file");
+            let Some(name) = &col.file else {
+                return Err(scene_error(file, None, &key, "a mesh needs `file`".into()));
+            };
+            let path = dir.join(name);
+            let shown = path.to_string_lossy().replace('\\', "/");
+            // A built-in mesh by its path, else the file, else a built-in mesh the name
+            // refers to (a saved copy of a built-in scene, written elsewhere).
+            let builtin = |key: &str| BUILTIN_MESHES.iter().find(|(n, _)| *n == key);
+            let suffix = format!("/{}", name.trim_start_matches("./"));
+            let mesh = match builtin(&shown) {
+                Some((_, text)) => crate::collide::TriMesh::from_obj_str(text, &shown),
+                None if !path.exists() => {
+                    match BUILTIN_MESHES.iter().find(|(n, _)| n.ends_with(&suffix)) {
+                        Some((n, text)) => crate::collide::TriMesh::from_obj_str(text, n),
+                        None => crate::collide::TriMesh::from_obj(&path),
+                    }
+                }
+                None => crate::collide::TriMesh::from_obj(&path),
+            }
+            .map_err(|e| scene_error(file, None, &key, e.to_string()))?;
+            col.mesh = Some(std::sync::Arc::new(mesh));
+        }
+        Ok(())
     }
 
     /// Applies `key.path=value` overrides (the value in TOML syntax, e.g. `[64, 64]`, `0.5`,
@@ -931,6 +990,20 @@ impl Scene {
                         )
                     })?;
                     positive(&key("radius"), r)?;
+                }
+                ColliderKind::Mesh => {
+                    match &col.file {
+                        Some(f) if !f.trim().is_empty() => {}
+                        _ => {
+                            return Err(invalid(
+                                key("file"),
+                                "missing",
+                                "a mesh needs `file`, an OBJ path relative to the scene",
+                            ));
+                        }
+                    }
+                    finite3(&key("center"), col.center.unwrap_or_default())?;
+                    finite3(&key("rotation"), col.rotation)?;
                 }
                 ColliderKind::Box => {
                     let center = col.center.ok_or_else(|| {
@@ -1164,7 +1237,7 @@ impl Scene {
         let cloth = grid.build()?;
         let min_mass = cloth.particles.min_mass();
         let mut sim = Simulation::new(cloth, self.config(min_mass))?;
-        for col in &self.colliders {
+        for (i, col) in self.colliders.iter().enumerate() {
             let shape = match col.kind {
                 ColliderKind::Sphere => Shape::Sphere {
                     center: Vec3::from(col.center.unwrap_or_default()),
@@ -1182,6 +1255,17 @@ impl Scene {
                 ColliderKind::Box => Shape::Box {
                     center: Vec3::from(col.center.unwrap_or_default()),
                     half_extents: Vec3::from(col.half_extents.unwrap_or([1.0; 3])),
+                    rotation: euler_degrees(col.rotation),
+                },
+                ColliderKind::Mesh => Shape::Mesh {
+                    mesh: col.mesh.clone().ok_or_else(|| {
+                        ClothError::invalid(
+                            format!("colliders[{i}].file"),
+                            &col.file,
+                            "a mesh loaded by Scene::from_toml or Scene::load_meshes",
+                        )
+                    })?,
+                    position: Vec3::from(col.center.unwrap_or_default()),
                     rotation: euler_degrees(col.rotation),
                 },
             };
@@ -1482,7 +1566,16 @@ pub const BUILTIN: &[(&str, &str)] = &[
         include_str!("../../../scenes/xpbd-curtain.toml"),
     ),
     ("sweep", include_str!("../../../scenes/sweep.toml")),
+    ("fold", include_str!("../../../scenes/fold.toml")),
+    ("pile", include_str!("../../../scenes/pile.toml")),
+    ("mesh", include_str!("../../../scenes/mesh.toml")),
 ];
+
+/// The meshes the built-in scenes use, by their path as seen from the scene files.
+pub const BUILTIN_MESHES: &[(&str, &str)] = &[(
+    "scenes/meshes/table.obj",
+    include_str!("../../../scenes/meshes/table.obj"),
+)];
 
 /// The TOML source of built-in scene `name`.
 #[must_use]

@@ -58,6 +58,28 @@ pub struct Simulation {
     stats: StepStats,
     /// Positions of the cloth as built (its rest shape), for tethers.
     rest_position: Vec<Vec3>,
+    /// Scratch of the self-contact diagnostics.
+    contact_check: crate::collide::intersect::SelfContactCheck,
+}
+
+/// A contact found by [`Simulation::contacts`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Contact {
+    /// The particle in contact.
+    pub particle: u32,
+    /// Unit normal pushing the particle out of the contact.
+    pub normal: Vec3,
+    /// What it touches.
+    pub with: ContactWith,
+}
+
+/// What a particle touches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ContactWith {
+    /// The collider with this index.
+    Collider(u32),
+    /// Another particle of the cloth (self-contact).
+    Cloth(u32),
 }
 
 /// Everything that changes while a simulation runs: enough to continue it later to the same
@@ -210,6 +232,7 @@ impl Simulation {
             steps: 0,
             stats: StepStats::default(),
             rest_position: Vec::new(),
+            contact_check: Default::default(),
         };
         sim.rest_position.clone_from(&sim.particles.position);
         sim.refresh_stats();
@@ -402,6 +425,69 @@ impl Simulation {
             .filter(|&(_, &w)| w == 0.0)
             .map(|(i, _)| (i as u32, -force[i]))
             .collect()
+    }
+
+    /// Self-contact diagnostics of the cloth now: the exact number of intersecting triangle
+    /// pairs (sharing no vertex) and the smallest distance from a particle to a triangle that
+    /// is not its neighbour, looking within `range` m (see [`crate::collide::intersect`]).
+    /// `range` defaults to the self-collision thickness when `None`, or to the cloth's
+    /// largest rest spacing when self-collision is off. Not allocating after the first call.
+    pub fn self_contact(&mut self, range: Option<f32>) -> crate::collide::intersect::SelfContact {
+        let range = range.unwrap_or_else(|| match self.config.self_collision {
+            Some(sc) => sc.thickness,
+            None => self
+                .topology
+                .springs_of(crate::topology::SpringKind::Warp)
+                .iter()
+                .chain(self.topology.springs_of(crate::topology::SpringKind::Weft))
+                .map(|s| s.rest_length)
+                .fold(0.0, f32::max),
+        });
+        self.contact_check.run(
+            &self.particles.position,
+            &self.rest_position,
+            self.topology.triangles(),
+            range,
+        )
+    }
+
+    /// The contacts of the current state, for display and inspection (appended to `out`):
+    /// every free particle within the contact layer of a collider (distance to the surface at
+    /// most the thickness plus 10 % of it plus 0.1 mm), with the collider's outward normal,
+    /// and, with self-collision on, every pair of particles closer than 1.05 × the
+    /// self-collision thickness that were further apart than that in the rest shape (layers
+    /// touching, not neighbours), with the unit vector from the other particle to this one.
+    pub fn contacts(&self, out: &mut Vec<Contact>) {
+        for (ci, col) in self.colliders.iter().enumerate() {
+            let reach = 1.1 * col.thickness + 1e-4;
+            for (i, &x) in self.particles.position.iter().enumerate() {
+                if self.particles.inv_mass[i] == 0.0 {
+                    continue;
+                }
+                let (d, n) = col.shape.distance_within(x, col.contact_range());
+                if d <= reach && n != Vec3::ZERO {
+                    out.push(Contact {
+                        particle: i as u32,
+                        normal: n,
+                        with: ContactWith::Collider(ci as u32),
+                    });
+                }
+            }
+        }
+        if let Some(sc) = self.config.self_collision {
+            self.solver.self_contacts(
+                &self.particles.position,
+                &self.rest_position,
+                1.05 * sc.thickness,
+                out,
+            );
+        }
+    }
+
+    /// The rest shape: the positions of the cloth as built, m.
+    #[must_use]
+    pub fn rest_positions(&self) -> &[Vec3] {
+        &self.rest_position
     }
 
     /// Total force of the springs, dashpots, damping and air on each particle right now

@@ -154,3 +154,54 @@ fn a_spinning_platform_carries_the_cloth() {
         "velocity {v} vs ω × r = {expected}"
     );
 }
+
+/// A triangle-mesh collider is a real kinematic collider: a closed box mesh moving up at
+/// 0.5 m/s and turning at 1 rad/s carries a cloth exactly like the analytic box with the
+/// same motion (same signed distance, so the same contacts): positions agree within 1e-4 m
+/// after 1 s, and the cloth rose with the box.
+#[test]
+fn a_moving_mesh_box_matches_the_analytic_box() {
+    use cloth_core::collide::mesh::box_mesh;
+    use std::sync::Arc;
+    let half = Vec3::new(0.4, 0.05, 0.4);
+    let (v, t) = box_mesh(Vec3::ZERO, half);
+    let mesh = Arc::new(cloth_core::TriMesh::new(v, t).expect("mesh"));
+    let run = |collider: Collider| {
+        let cloth = GridBuilder::new(12, 12)
+            .size(0.5, 0.5)
+            .origin(Vec3::new(0.0, 0.1, 0.0))
+            .mass(Mass::ArealDensity(0.2))
+            .build()
+            .expect("cloth");
+        let config = SimConfig {
+            substeps: 40,
+            ..SimConfig::default()
+        };
+        let mut sim = Simulation::new(cloth, config).expect("sim");
+        sim.add_collider(
+            collider
+                .with_thickness(0.005)
+                .with_friction(Friction::new(1.0, 0.8))
+                .with_velocity(Vec3::new(0.0, 0.5, 0.0))
+                .with_angular_velocity(Vec3::new(0.0, 1.0, 0.0)),
+        )
+        .expect("collider");
+        for _ in 0..60 {
+            sim.step().expect("step");
+        }
+        sim.particles().position.clone()
+    };
+    let analytic = run(Collider::cuboid(Vec3::ZERO, half, Quat::IDENTITY));
+    let meshed = run(Collider::mesh(mesh, Vec3::ZERO, Quat::IDENTITY));
+    let worst = analytic
+        .iter()
+        .zip(&meshed)
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0f32, f32::max);
+    assert!(worst < 1e-4, "mesh and analytic box differ by {worst} m");
+    let mean_y = meshed.iter().map(|p| p.y).sum::<f32>() / meshed.len() as f32;
+    assert!(
+        mean_y > 0.5,
+        "the cloth rode up with the box: mean y {mean_y}"
+    );
+}

@@ -864,7 +864,7 @@ const GOLDEN: [(Integrator, u64); 5] = [
     (Integrator::ForwardEuler, 0x8265_4261_b513_35d5),
     (Integrator::SymplecticEuler, 0x2c96_4665_48c0_19de),
     (Integrator::Verlet, 0xa257_faa0_6e96_5c38),
-    (Integrator::ImplicitEuler, 0xe5dd_633d_f1e8_fb62),
+    (Integrator::ImplicitEuler, 0x02c3_b0b9_cab7_f8d2),
     (Integrator::Xpbd, 0x89ab_2b6a_f3ee_c2de),
 ];
 

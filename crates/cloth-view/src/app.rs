@@ -415,6 +415,7 @@ impl App {
             KeyCode::KeyW if self.mode == CameraMode::Orbit => {
                 self.render.wireframe = !self.render.wireframe;
             }
+            KeyCode::KeyK => self.render.contacts = !self.render.contacts,
             KeyCode::Home => self.apply(Action::ResetView),
             KeyCode::Tab => self.panel.visible = !self.panel.visible,
             KeyCode::Escape => event_loop.exit(),

@@ -99,6 +99,13 @@ impl SceneKind {
                     let h = c.half_extents.map_or(0.0, |h| Vec3::from(h).length());
                     c.center.map_or(0.0, |p| p[1]) - h
                 }
+                ColliderKind::Mesh => {
+                    let y = c.center.map_or(0.0, |p| p[1]);
+                    c.mesh.as_ref().map_or(y, |m| {
+                        let (lo, hi) = m.bounds();
+                        y - lo.length().max(hi.length())
+                    })
+                }
                 ColliderKind::Plane => 0.0,
             })
             .fold(cloth_low, f32::min);

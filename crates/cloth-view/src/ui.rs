@@ -272,6 +272,7 @@ impl Panel {
             ui.checkbox(&mut options.springs, "springs by class");
             ui.checkbox(&mut options.pattern, "fabric pattern");
             ui.checkbox(&mut options.pins, "pin markers");
+            ui.checkbox(&mut options.contacts, "contacts (K)");
             ui.horizontal(|ui| {
                 ui.label("camera (C):");
                 ui.selectable_value(mode, CameraMode::Orbit, "orbit");
@@ -284,7 +285,7 @@ impl Panel {
         ui.separator();
         ui.small(
             "drag cloth: grab · drag: orbit · right/middle drag: pan · wheel: zoom · \
-             ctrl/shift-click: pin · space pause · N step · R reset · C camera · W wireframe · \
+             ctrl/shift-click: pin · space pause · N step · R reset · C camera · W wireframe · K contacts · \
              Home view · Tab panel",
         );
     }

@@ -12,7 +12,8 @@
 //!    is the particle's path relative to the collider and `b` is where the integrator left
 //!    the particle.
 //! 2. Cheap cull: every shape's signed distance `φ` is 1-Lipschitz, so the path cannot touch
-//!    the solid when `φ(a) + φ(b) ≥ |b − a|`. Nearly every particle stops here.
+//!    the solid when `φ(a) + φ(b) ≥ |b − a|`, which already holds when `φ(b) ≥ |b − a|` (one
+//!    distance query). Nearly every particle stops here.
 //! 3. Conservative advancement (sphere tracing) along the path finds the first point where it
 //!    touches the solid surface, with the outward normal `n` there. It never steps past the
 //!    surface, because each step is at most the distance to it.
@@ -23,9 +24,10 @@
 //!    discrete pass. A particle that the discrete pass already put on the correct side is
 //!    left alone, so resting and sliding contacts are unchanged.
 //!
-//! 5. Last, `project` puts back on the contact surface any particle that a pass after the
-//!    integrator's own contact handling (strain limiting, self-collision) pushed into the
-//!    contact layer, so that every substep starts with the particles outside the solids.
+//! 5. Last, when a pass runs after the integrator's own contact handling (strain limiting or
+//!    self-collision with the force-based integrators), `project` puts back on the contact
+//!    surface any particle it pushed into the contact layer, so that every substep starts
+//!    with the particles outside the solids.
 //!
 //! Particles starting inside a solid are left to the discrete pass. The passes allocate
 //! nothing and visit particles in index order (deterministic).
@@ -103,16 +105,16 @@ pub(crate) fn resolve_in(
             let b = *x;
             let path = b - a;
             let len = path.length();
-            if !(len > 0.0) {
+            if len.is_nan() || len <= 0.0 {
                 continue;
             }
-            // 2. cull
-            let (da, _) = col.shape.distance_within(a, len);
-            if da < 0.0 {
-                continue;
-            }
+            // 2. cull: φ(a) ≥ φ(b) − |b − a|, so φ(b) ≥ |b − a| alone implies the test
             let (db, _) = col.shape.distance_within(b, len);
-            if da + db >= len {
+            if db >= len {
+                continue;
+            }
+            let (da, _) = col.shape.distance_within(a, len);
+            if da < 0.0 || da + db >= len {
                 continue;
             }
             // 3. advance to the first touch

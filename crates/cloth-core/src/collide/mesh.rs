@@ -107,7 +107,7 @@ impl TriMesh {
             let [a, b, c] = tri.map(|i| vertices[i as usize]);
             let cross = (b - a).cross(c - a);
             let len = cross.length();
-            if !(len > 1e-12) {
+            if len.is_nan() || len <= 1e-12 {
                 return Err(ClothError::invalid(
                     format!("mesh.triangles[{t}]"),
                     format!("{tri:?}"),

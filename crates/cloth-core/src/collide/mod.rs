@@ -1,6 +1,7 @@
 //! Colliders and the contact response shared by the explicit integrators.
 
 pub mod ccd;
+pub mod intersect;
 pub mod mesh;
 pub mod self_collision;
 

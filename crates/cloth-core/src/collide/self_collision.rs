@@ -1,6 +1,7 @@
 //! Cloth–cloth contact: particles keep a thickness from each other (particle–particle
-//! repulsion, as in Ten Minute Physics' self-collision), found with a spatial hash rebuilt every
-//! substep.
+//! repulsion, as in Ten Minute Physics' self-collision), found with a spatial hash and a cached
+//! list of candidate pairs that is rebuilt only when particles have moved far enough to need
+//! it (see `SelfCollisionScratch`).
 //!
 //! A pair of particles closer than d_min = min(thickness, rest distance) is pushed apart to
 //! d_min along the line between them, mass-weighted (a pinned particle does not move). Taking
@@ -9,8 +10,8 @@
 //! relative velocity is also removed (an inelastic contact) and Coulomb-like friction damps the
 //! tangential relative velocity; XPBD needs only the positions.
 //!
-//! Pairs are visited in a fixed order (particles by index; the 27 neighbouring cells in a fixed
-//! order; each cell's particles by index, from a counting sort), so results are deterministic.
+//! Pairs are visited in a fixed order (by the first particle's index, then the second's), so
+//! results are deterministic.
 
 use glam::{IVec3, Vec3};
 
@@ -93,71 +94,171 @@ impl SpatialHash {
     }
 }
 
+/// Self-collision scratch: the spatial hash and a cached list of candidate pairs.
+///
+/// Rebuilding the hash and querying 27 cells for every particle every substep is what makes
+/// naive self-collision expensive. Instead, candidate pairs closer than `R = thickness +
+/// 2·margin` are collected into a list (with their d_min), and each substep only visits that
+/// list. The list stays valid while no particle has moved more than `margin` from where it
+/// was when the list was built: a pair not in the list was at least R apart then, so it is
+/// still at least R − 2·margin = thickness apart, too far to touch. When some particle moved
+/// further, the list is rebuilt. So the cache changes the cost, never the result.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct SelfCollisionScratch {
+    hash: SpatialHash,
+    /// Candidate pairs `(i, j, d_min)` with i < j, sorted by (i, j).
+    pairs: Vec<(u32, u32, f32)>,
+    /// Positions when `pairs` was built.
+    anchor: Vec<Vec3>,
+    /// Margin the list was built with, m (0: no list yet).
+    margin: f32,
+    /// Number of list rebuilds (for tests and diagnostics).
+    pub rebuilds: u64,
+}
+
+impl SelfCollisionScratch {
+    /// Pairs of the candidate list closer than `reach` that were at least `reach` apart in the
+    /// rest shape (layers touching, not neighbours), as contacts of both particles.
+    pub(crate) fn contacts(
+        &self,
+        position: &[Vec3],
+        rest: &[Vec3],
+        reach: f32,
+        out: &mut Vec<crate::sim::Contact>,
+    ) {
+        use crate::sim::{Contact, ContactWith};
+        for &(i, j, _) in &self.pairs {
+            let (iu, ju) = (i as usize, j as usize);
+            if iu >= position.len() || ju >= position.len() {
+                continue;
+            }
+            let d = position[iu] - position[ju];
+            let len = d.length();
+            // Rest neighbours (closer than `reach` in the rest shape) are not layer contacts.
+            if len >= reach || rest[iu].distance(rest[ju]) < reach || len == 0.0 {
+                continue;
+            }
+            let n = d / len;
+            out.push(Contact {
+                particle: i,
+                normal: n,
+                with: ContactWith::Cloth(j),
+            });
+            out.push(Contact {
+                particle: j,
+                normal: -n,
+                with: ContactWith::Cloth(i),
+            });
+        }
+    }
+
+    /// Makes sure the pair list covers every pair that can be closer than `thickness` now.
+    fn refresh(&mut self, particles: &Particles, rest: &[Vec3], thickness: f32) {
+        let margin = 0.5 * thickness;
+        let n = particles.len();
+        let valid = self.margin == margin && self.anchor.len() == n && {
+            let m2 = margin * margin;
+            particles
+                .position
+                .iter()
+                .zip(&self.anchor)
+                .all(|(p, a)| p.distance_squared(*a) <= m2)
+        };
+        if valid {
+            return;
+        }
+        self.rebuilds += 1;
+        self.margin = margin;
+        self.anchor.clone_from(&particles.position);
+        let radius = thickness + 2.0 * margin;
+        self.hash.build(&particles.position, radius);
+        let inv = 1.0 / radius;
+        self.pairs.clear();
+        // Room for 12 candidate pairs per particle (a flat sheet has about 6 within R, two
+        // layers in contact about 12), so that a step does not allocate after the first
+        // unless the cloth is heaped denser than that.
+        self.pairs.reserve(12 * n);
+        let r2 = radius * radius;
+        for i in 0..n {
+            let first = self.pairs.len();
+            let xi = particles.position[i];
+            let ci = cell_coord(xi, inv);
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let h = self.hash.hash(ci + IVec3::new(dx, dy, dz)) as usize;
+                        let (a, b) = (self.hash.start[h] as usize, self.hash.start[h + 1] as usize);
+                        for &j in &self.hash.entries[a..b] {
+                            let ju = j as usize;
+                            if ju <= i
+                                || particles.inv_mass[i] + particles.inv_mass[ju] == 0.0
+                                || xi.distance_squared(particles.position[ju]) >= r2
+                            {
+                                continue;
+                            }
+                            let d_min = thickness.min(rest[i].distance(rest[ju]));
+                            self.pairs.push((i as u32, j, d_min));
+                        }
+                    }
+                }
+            }
+            // Canonical order, and no duplicates from cells sharing a hash bucket.
+            self.pairs[first..].sort_unstable_by_key(|p| p.1);
+            let mut w = first;
+            for r in first..self.pairs.len() {
+                if w == first || self.pairs[w - 1].1 != self.pairs[r].1 {
+                    self.pairs[w] = self.pairs[r];
+                    w += 1;
+                }
+            }
+            self.pairs.truncate(w);
+        }
+    }
+}
+
 /// Separates every pair of particles closer than min(thickness, rest distance). Returns the
-/// number of pairs in contact. `h` is the substep (for the velocity update of the force-based
-/// integrators); `velocities` says whether to update velocities (false for XPBD).
+/// number of pairs in contact. `velocities` says whether to update velocities (the
+/// force-based integrators; false for XPBD).
 pub(crate) fn resolve(
-    hash: &mut SpatialHash,
+    scratch: &mut SelfCollisionScratch,
     particles: &mut Particles,
     rest: &[Vec3],
     settings: SelfCollision,
     velocities: bool,
 ) -> u32 {
-    let d = settings.thickness;
-    hash.build(&particles.position, d);
-    let inv = 1.0 / d;
+    scratch.refresh(particles, rest, settings.thickness);
     let mut contacts = 0;
-    let n = particles.len();
-    for i in 0..n {
-        let wi = particles.inv_mass[i];
-        let ci = cell_coord(particles.position[i], inv);
-        for dz in -1..=1 {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    let h = hash.hash(ci + IVec3::new(dx, dy, dz)) as usize;
-                    let (a, b) = (hash.start[h] as usize, hash.start[h + 1] as usize);
-                    for k in a..b {
-                        let j = hash.entries[k] as usize;
-                        if j <= i {
-                            continue;
-                        }
-                        let wj = particles.inv_mass[j];
-                        let w = wi + wj;
-                        if w == 0.0 {
-                            continue;
-                        }
-                        let delta = particles.position[i] - particles.position[j];
-                        let dist_sq = delta.length_squared();
-                        let d_min = d.min(rest[i].distance(rest[j]));
-                        if dist_sq >= d_min * d_min || dist_sq == 0.0 {
-                            continue;
-                        }
-                        contacts += 1;
-                        let dist = dist_sq.sqrt();
-                        let nrm = delta / dist;
-                        let push = (d_min - dist) / w;
-                        particles.position[i] += (wi * push) * nrm;
-                        particles.position[j] -= (wj * push) * nrm;
-                        if velocities {
-                            let v_rel = particles.velocity[i] - particles.velocity[j];
-                            let vn = v_rel.dot(nrm);
-                            if vn < 0.0 {
-                                let vt = v_rel - vn * nrm;
-                                let vt_len = vt.length();
-                                let damp = if vt_len > 0.0 {
-                                    (settings.friction * -vn / vt_len).min(1.0)
-                                } else {
-                                    0.0
-                                };
-                                // The relative velocity changes by −dv: its approaching normal
-                                // part is removed and its tangential part damped; shared by mass.
-                                let dv = vn * nrm + damp * vt;
-                                particles.velocity[i] -= (wi / w) * dv;
-                                particles.velocity[j] += (wj / w) * dv;
-                            }
-                        }
-                    }
-                }
+    for &(i, j, d_min) in &scratch.pairs {
+        let (i, j) = (i as usize, j as usize);
+        let delta = particles.position[i] - particles.position[j];
+        let dist_sq = delta.length_squared();
+        if dist_sq >= d_min * d_min || dist_sq == 0.0 {
+            continue;
+        }
+        let (wi, wj) = (particles.inv_mass[i], particles.inv_mass[j]);
+        let w = wi + wj;
+        contacts += 1;
+        let dist = dist_sq.sqrt();
+        let nrm = delta / dist;
+        let push = (d_min - dist) / w;
+        particles.position[i] += (wi * push) * nrm;
+        particles.position[j] -= (wj * push) * nrm;
+        if velocities {
+            let v_rel = particles.velocity[i] - particles.velocity[j];
+            let vn = v_rel.dot(nrm);
+            if vn < 0.0 {
+                let vt = v_rel - vn * nrm;
+                let vt_len = vt.length();
+                let damp = if vt_len > 0.0 {
+                    (settings.friction * -vn / vt_len).min(1.0)
+                } else {
+                    0.0
+                };
+                // The relative velocity changes by −dv: its approaching normal part is
+                // removed and its tangential part damped; shared by mass.
+                let dv = vn * nrm + damp * vt;
+                particles.velocity[i] -= (wi / w) * dv;
+                particles.velocity[j] += (wj / w) * dv;
             }
         }
     }

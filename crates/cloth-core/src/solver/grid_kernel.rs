@@ -450,7 +450,6 @@ pub(crate) fn keep_start(scratch: &mut GridScratch, position: &[Vec3]) {
 /// [`keep_start`] (used when a planned fast substep fell back to the reference path).
 pub(crate) fn ccd_after_fallback(ctx: &mut SubstepCtx<'_>, scratch: &GridScratch) {
     ctx.contacts.ccd += ccd::resolve(ctx.colliders, &scratch.next_position, ctx.particles, ctx.h);
-    ccd::project(ctx.colliders, ctx.particles);
 }
 
 /// One band of rows `r0 .. r1`: writes their new state into `out_x`, `out_v` (the band's
@@ -608,7 +607,8 @@ fn contacts_row(
                 );
                 k = l;
             }
-            ccd::project_in(job.colliders, x, v, w);
+            // (No projection pass: the solver runs it only after strain limiting or
+            // self-collision, and the plan fuses continuous collision only without them.)
         }
         i = j;
     }

@@ -158,7 +158,16 @@ pub(super) fn substep(
         *m = m.inverse();
     }
 
-    // Filters: pins fixed, resting contacts constrained along their normal.
+    // Filters: pins fixed, resting contacts constrained along their normal. A contact counts
+    // as resting when the particle is within the slack of the contact surface (plus the
+    // distance gravity pulls it in one substep) and leaves it slower than gravity would stop
+    // it within the substep: otherwise it would fall back in during the substep and be
+    // projected out afterwards, a hop that never settles.
+    let g_h = if cfg.forces.gravity {
+        cfg.gravity.length() * h
+    } else {
+        0.0
+    };
     sc.filter.clear();
     resize(&mut sc.dv, n);
     for i in 0..n {
@@ -169,10 +178,10 @@ pub(super) fn substep(
         let mut filter = Filter::Free;
         for (ci, col) in ctx.colliders.iter().enumerate() {
             let (dist, nrm) = col.shape.distance_within(x[i], col.contact_range());
-            let slack = 0.1 * col.thickness + 1e-5;
+            let slack = 0.1 * col.thickness + 1e-5 + g_h * h;
             if dist - col.thickness < slack {
                 let vn = (v[i] - col.velocity_at(x[i])).dot(nrm);
-                if vn <= 0.0 {
+                if vn <= g_h {
                     // Δv·n = −v_rel·n: the new normal velocity equals the collider's.
                     sc.dv[i] = -vn * nrm;
                     filter = Filter::Normal(nrm, ci as u32);

@@ -78,7 +78,7 @@ pub(crate) struct Solver {
     /// Solver figures accumulated over the current step.
     stats: SolverStats,
     /// Spatial hash of the self-collision pass.
-    hash: crate::collide::self_collision::SpatialHash,
+    hash: crate::collide::self_collision::SelfCollisionScratch,
     /// Positions at the start of the substep (for continuous collision).
     start: Vec<Vec3>,
     /// Scratch of the explicit integrators' grid fast path.
@@ -116,7 +116,13 @@ impl Solver {
         if ccd {
             ctx.contacts.ccd +=
                 crate::collide::ccd::resolve(ctx.colliders, &self.start, ctx.particles, ctx.h);
-            crate::collide::ccd::project(ctx.colliders, ctx.particles);
+            // Strain limiting and self-collision run after the contacts of the force-based
+            // integrators (XPBD solves contacts last in each sweep).
+            let after_contacts = integrator != Integrator::Xpbd
+                && (ctx.config.strain_limit.is_some() || ctx.config.self_collision.is_some());
+            if after_contacts {
+                crate::collide::ccd::project(ctx.colliders, ctx.particles);
+            }
         }
     }
 
@@ -156,6 +162,18 @@ impl Solver {
                 true,
             );
         }
+    }
+
+    /// Self-contact pairs closer than `reach` (and than their rest distance) among the
+    /// candidate pairs of the last self-collision pass, appended to `out`.
+    pub fn self_contacts(
+        &self,
+        position: &[Vec3],
+        rest: &[Vec3],
+        reach: f32,
+        out: &mut Vec<crate::sim::Contact>,
+    ) {
+        self.hash.contacts(position, rest, reach, out);
     }
 
     /// The total force on every particle at the current state, into the scratch, and

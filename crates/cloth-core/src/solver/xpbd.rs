@@ -87,7 +87,7 @@ pub(super) fn substep(
     ctx: &mut SubstepCtx<'_>,
     force: &mut [Vec3],
     sc: &mut XpbdScratch,
-    hash: &mut crate::collide::self_collision::SpatialHash,
+    hash: &mut crate::collide::self_collision::SelfCollisionScratch,
 ) {
     let h = ctx.h;
     let cfg = ctx.config;

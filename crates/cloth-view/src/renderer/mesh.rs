@@ -313,6 +313,18 @@ pub fn spring_color(kind: SpringKind) -> [f32; 3] {
     }
 }
 
+/// Appends the segment from `a` to `b`.
+pub fn segment(a: Vec3, b: Vec3, color: [f32; 3], out: &mut Vec<LineVertex>) {
+    out.push(LineVertex {
+        position: a.to_array(),
+        color,
+    });
+    out.push(LineVertex {
+        position: b.to_array(),
+        color,
+    });
+}
+
 /// Appends a small three-axis cross at `p`.
 pub fn cross(p: Vec3, size: f32, color: [f32; 3], out: &mut Vec<LineVertex>) {
     for axis in [Vec3::X, Vec3::Y, Vec3::Z] {

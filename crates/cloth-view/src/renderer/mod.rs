@@ -41,6 +41,11 @@ pub fn background_linear() -> [f32; 3] {
     BACKGROUND_SRGB8.map(srgb_to_linear)
 }
 
+/// Colour of collider contacts (linear RGB).
+const CONTACT_COLLIDER: [f32; 3] = [0.1, 0.85, 0.95];
+/// Colour of cloth–cloth contacts (linear RGB).
+const CONTACT_CLOTH: [f32; 3] = [0.95, 0.2, 0.85];
+
 /// What to draw besides the cloth, and how.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RenderOptions {
@@ -52,6 +57,9 @@ pub struct RenderOptions {
     pub surface: bool,
     /// Mark pinned particles with small crosses.
     pub pins: bool,
+    /// Draw the contacts: a short cyan line along the collider's normal at each particle
+    /// touching a collider, and a magenta line between particles touching each other.
+    pub contacts: bool,
     /// The fabric pattern on the cloth.
     pub pattern: bool,
     /// Height of a ground drawn for looks when the scene has no plane collider, m.
@@ -69,6 +77,7 @@ impl Default for RenderOptions {
             springs: false,
             surface: true,
             pins: true,
+            contacts: false,
             pattern: true,
             floor: None,
             front_color: [0.50, 0.07, 0.06],
@@ -263,6 +272,7 @@ pub struct Renderer {
     mesh_scratch: Vec<MeshVertex>,
     index_scratch: Vec<u32>,
     line_scratch: Vec<LineVertex>,
+    contact_scratch: Vec<cloth_core::Contact>,
     draw_surface: bool,
     color_format: wgpu::TextureFormat,
     samples: u32,
@@ -380,6 +390,7 @@ impl Renderer {
             mesh_scratch: Vec::new(),
             index_scratch: Vec::new(),
             line_scratch: Vec::new(),
+            contact_scratch: Vec::new(),
             draw_surface: true,
             color_format,
             samples,
@@ -521,6 +532,35 @@ impl Renderer {
             for (i, p) in positions.iter().enumerate() {
                 if sim.particles().is_pinned(i) {
                     mesh::cross(*p, size, [1.0, 0.85, 0.1], &mut self.line_scratch);
+                }
+            }
+        }
+        if options.contacts {
+            self.contact_scratch.clear();
+            sim.contacts(&mut self.contact_scratch);
+            let spacing = positions
+                .first()
+                .zip(positions.get(1))
+                .map_or(0.02, |(a, b)| a.distance(*b));
+            let length = (1.5 * spacing).clamp(0.01, 0.05);
+            for c in &self.contact_scratch {
+                let p = positions[c.particle as usize];
+                match c.with {
+                    cloth_core::ContactWith::Collider(_) => {
+                        mesh::segment(
+                            p,
+                            p + length * c.normal,
+                            CONTACT_COLLIDER,
+                            &mut self.line_scratch,
+                        );
+                    }
+                    cloth_core::ContactWith::Cloth(other) => {
+                        // Each pair is listed from both ends: draw it once.
+                        if c.particle < other {
+                            let q = positions[other as usize];
+                            mesh::segment(p, q, CONTACT_CLOTH, &mut self.line_scratch);
+                        }
+                    }
                 }
             }
         }
