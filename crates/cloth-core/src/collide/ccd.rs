@@ -150,14 +150,7 @@ pub(crate) fn resolve_in(
             if vn >= 0.0 {
                 continue;
             }
-            let dvn = -vn;
-            let vt = v_rel - vn * n;
-            let vt_len = vt.length();
-            let vt_new = if vt_len <= mu_s * dvn {
-                Vec3::ZERO
-            } else {
-                vt * (1.0 - mu_k * dvn / vt_len).max(0.0)
-            };
+            let (_, vt_new) = super::coulomb(v_rel, vn, n, mu_s, mu_k);
             *v = v_col + vt_new;
         }
     }

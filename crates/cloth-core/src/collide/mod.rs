@@ -431,6 +431,23 @@ impl Collider {
     }
 }
 
+/// Coulomb friction of a contact (after Bridson et al. 2002) whose approaching normal relative
+/// velocity `vn < 0` along `n` is being removed: returns the tangential relative velocity
+/// `v_t` and what it becomes, zero when |v_t| ≤ μ_s·|vn| (sticking), else shortened by
+/// μ_k·|vn| (sliding).
+#[inline]
+pub(crate) fn coulomb(v_rel: Vec3, vn: f32, n: Vec3, mu_s: f32, mu_k: f32) -> (Vec3, Vec3) {
+    let dvn = -vn;
+    let vt = v_rel - vn * n;
+    let vt_len = vt.length();
+    let vt_new = if vt_len <= mu_s * dvn {
+        Vec3::ZERO
+    } else {
+        vt * (1.0 - mu_k * dvn / vt_len).max(0.0)
+    };
+    (vt, vt_new)
+}
+
 /// Counts of the contacts handled in one substep.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(crate) struct ContactStats {
@@ -496,14 +513,7 @@ pub(crate) fn resolve_contacts_in(
             if vn >= 0.0 {
                 continue;
             }
-            let dvn = -vn;
-            let vt = v_rel - vn * n;
-            let vt_len = vt.length();
-            let vt_new = if vt_len <= mu_s * dvn {
-                Vec3::ZERO
-            } else {
-                vt * (1.0 - mu_k * dvn / vt_len).max(0.0)
-            };
+            let (vt, vt_new) = coulomb(v_rel, vn, n, mu_s, mu_k);
             *v = v_col + vt_new;
             *x += pos_weight * (vt_new - vt);
         }
