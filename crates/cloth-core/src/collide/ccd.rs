@@ -105,7 +105,9 @@ pub(crate) fn resolve_in(
             let b = *x;
             let path = b - a;
             let len = path.length();
-            if len.is_nan() || len <= 0.0 {
+            // A path shorter than τ can never end more than τ behind its entry point (every
+            // point of it is within `len` of the end); half of τ leaves room for rounding.
+            if len.is_nan() || len < 0.5 * tau {
                 continue;
             }
             // 2. cull: φ(a) ≥ φ(b) − |b − a|, so φ(b) ≥ |b − a| alone implies the test
