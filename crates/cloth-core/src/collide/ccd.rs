@@ -146,14 +146,7 @@ pub(crate) fn resolve_in(
             }
             corrected += 1;
             *x = p + col.thickness * n;
-            let v_col = col.velocity_at(*x);
-            let v_rel = *v - v_col;
-            let vn = v_rel.dot(n);
-            if vn >= 0.0 {
-                continue;
-            }
-            let (_, vt_new) = super::coulomb(v_rel, vn, n, mu_s, mu_k);
-            *v = v_col + vt_new;
+            let _ = super::respond(col, *x, v, n, mu_s, mu_k);
         }
     }
     corrected

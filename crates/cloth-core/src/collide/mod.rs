@@ -448,6 +448,30 @@ pub(crate) fn coulomb(v_rel: Vec3, vn: f32, n: Vec3, mu_s: f32, mu_k: f32) -> (V
     (vt, vt_new)
 }
 
+/// The velocity response of a particle at `x` touching `collider` with outward normal `n`:
+/// when it approaches (relative normal velocity < 0), the normal part of its velocity
+/// relative to the collider's surface is removed and Coulomb friction ([`coulomb`]) applied.
+/// Returns the change of the tangential relative velocity, or `None` when it separates.
+#[inline]
+pub(crate) fn respond(
+    collider: &Collider,
+    x: Vec3,
+    v: &mut Vec3,
+    n: Vec3,
+    mu_s: f32,
+    mu_k: f32,
+) -> Option<Vec3> {
+    let v_col = collider.velocity_at(x);
+    let v_rel = *v - v_col;
+    let vn = v_rel.dot(n);
+    if vn >= 0.0 {
+        return None;
+    }
+    let (vt, vt_new) = coulomb(v_rel, vn, n, mu_s, mu_k);
+    *v = v_col + vt_new;
+    Some(vt_new - vt)
+}
+
 /// Counts of the contacts handled in one substep.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(crate) struct ContactStats {
@@ -507,15 +531,9 @@ pub(crate) fn resolve_contacts_in(
             }
             contacts += 1;
             *x -= phi * n;
-            let v_col = collider.velocity_at(*x);
-            let v_rel = *v - v_col;
-            let vn = v_rel.dot(n);
-            if vn >= 0.0 {
-                continue;
+            if let Some(dvt) = respond(collider, *x, v, n, mu_s, mu_k) {
+                *x += pos_weight * dvt;
             }
-            let (vt, vt_new) = coulomb(v_rel, vn, n, mu_s, mu_k);
-            *v = v_col + vt_new;
-            *x += pos_weight * (vt_new - vt);
         }
     }
     contacts

@@ -79,7 +79,7 @@ pub(crate) struct Solver {
     stats: SolverStats,
     /// Spatial hash of the self-collision pass.
     hash: crate::collide::self_collision::SelfCollisionScratch,
-    /// Positions at the start of the substep (for continuous collision).
+    /// Positions at the start of the substep (for continuous collision; XPBD has its own).
     start: Vec<Vec3>,
     /// Scratch of the explicit integrators' grid fast path.
     grid: grid_kernel::GridScratch,
@@ -108,18 +108,21 @@ impl Solver {
         let ccd = ctx.config.continuous_collision
             && !ctx.colliders.is_empty()
             && !grid.is_some_and(|g| g.ccd);
-        if ccd {
+        // XPBD keeps the substep's start positions itself; the others copy them here.
+        let xpbd = integrator == Integrator::Xpbd;
+        if ccd && !xpbd {
             self.start.clear();
             self.start.extend_from_slice(&ctx.particles.position);
         }
         self.integrate(integrator, grid, &mut ctx);
         if ccd {
+            let start = if xpbd { self.xpbd.start() } else { &self.start };
             ctx.contacts.ccd +=
-                crate::collide::ccd::resolve(ctx.colliders, &self.start, ctx.particles, ctx.h);
+                crate::collide::ccd::resolve(ctx.colliders, start, ctx.particles, ctx.h);
             // Strain limiting and self-collision run after the contacts of the force-based
             // integrators (XPBD solves contacts last in each sweep).
-            let after_contacts = integrator != Integrator::Xpbd
-                && (ctx.config.strain_limit.is_some() || ctx.config.self_collision.is_some());
+            let after_contacts =
+                !xpbd && (ctx.config.strain_limit.is_some() || ctx.config.self_collision.is_some());
             if after_contacts {
                 crate::collide::ccd::project(ctx.colliders, ctx.particles);
             }

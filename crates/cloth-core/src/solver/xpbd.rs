@@ -82,6 +82,13 @@ impl XpbdScratch {
     }
 }
 
+impl XpbdScratch {
+    /// The positions at the start of the last substep.
+    pub(super) fn start(&self) -> &[Vec3] {
+        &self.prev
+    }
+}
+
 /// One XPBD substep.
 pub(super) fn substep(
     ctx: &mut SubstepCtx<'_>,

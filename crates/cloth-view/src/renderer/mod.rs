@@ -494,15 +494,13 @@ impl Renderer {
         // lines
         self.line_scratch.clear();
         let line = |out: &mut Vec<LineVertex>, a: u32, b: u32, color: [f32; 3]| {
-            out.push(LineVertex {
-                position: positions[a as usize].to_array(),
-                color,
-            });
-            out.push(LineVertex {
-                position: positions[b as usize].to_array(),
-                color,
-            });
+            mesh::segment(positions[a as usize], positions[b as usize], color, out);
         };
+        // Marker sizes follow the grid spacing.
+        let spacing = positions
+            .first()
+            .zip(positions.get(1))
+            .map_or(0.02, |(a, b)| a.distance(*b));
         if options.wireframe {
             let color = if options.surface {
                 [0.05, 0.05, 0.06]
@@ -522,13 +520,7 @@ impl Renderer {
             }
         }
         if options.pins {
-            let (rows, cols) = sim.grid_size();
-            let spacing = positions
-                .first()
-                .zip(positions.get(1))
-                .map_or(0.02, |(a, b)| a.distance(*b));
             let size = (0.35 * spacing).clamp(0.004, 0.03);
-            let _ = rows.max(cols);
             for (i, p) in positions.iter().enumerate() {
                 if sim.particles().is_pinned(i) {
                     mesh::cross(*p, size, [1.0, 0.85, 0.1], &mut self.line_scratch);
@@ -538,10 +530,6 @@ impl Renderer {
         if options.contacts {
             self.contact_scratch.clear();
             sim.contacts(&mut self.contact_scratch);
-            let spacing = positions
-                .first()
-                .zip(positions.get(1))
-                .map_or(0.02, |(a, b)| a.distance(*b));
             let length = (1.5 * spacing).clamp(0.01, 0.05);
             for c in &self.contact_scratch {
                 let p = positions[c.particle as usize];
@@ -557,8 +545,7 @@ impl Renderer {
                     cloth_core::ContactWith::Cloth(other) => {
                         // Each pair is listed from both ends: draw it once.
                         if c.particle < other {
-                            let q = positions[other as usize];
-                            mesh::segment(p, q, CONTACT_CLOTH, &mut self.line_scratch);
+                            line(&mut self.line_scratch, c.particle, other, CONTACT_CLOTH);
                         }
                     }
                 }
