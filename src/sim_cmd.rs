@@ -696,6 +696,13 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
             "interrupted".to_string(),
         ),
     };
+    // Structural strain of the final state: median, 99th and 99.9th percentiles, maximum.
+    let q = cloth_core::diagnostics::strain_quantiles(
+        sim.topology(),
+        &sim.particles().position,
+        SpringClass::Structural,
+        &[0.5, 0.99, 0.999, 1.0],
+    );
     if let Some(path) = &args.report {
         let report = serde_json::json!({
             "format": "cloth-report-1",
@@ -714,6 +721,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
             "median_frame_ms": 1e3 * median_frame,
             "median_frame_particle_substeps_per_second": median_throughput,
             "status": status_json,
+            "final_structural_strain": { "p50": q[0], "p99": q[1], "p99_9": q[2], "max": q[3] },
         });
         write_atomic(path, &serde_json::to_vec_pretty(&report)?)
             .with_context(|| format!("writing the report {}", path.display()))?;
@@ -727,6 +735,13 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         median_throughput,
         args.threads,
         kernel.name()
+    );
+    println!(
+        "structural strain at the end: median {:.3}%, p99 {:.3}%, p99.9 {:.3}%, max {:.3}%",
+        100.0 * q[0],
+        100.0 * q[1],
+        100.0 * q[2],
+        100.0 * q[3]
     );
     if cfg.self_collision.is_some() {
         println!(

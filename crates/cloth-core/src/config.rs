@@ -300,6 +300,16 @@ pub struct XpbdSettings {
     /// Extra length allowed to tethers, as a fraction of their rest length, `>= 0`. Default
     /// 0.02.
     pub tether_slack: f32,
+    /// Multi-resolution strain limits (after Wang, O'Brien & Ramamoorthi 2010): particles 2,
+    /// 4, …, 2^`hierarchy_levels` apart along the warp and along the weft of a grid cloth are
+    /// kept at most (1 + `hierarchy_slack`) times their rest distance apart, projected after
+    /// the springs in every sweep. A pull then crosses 2^levels particles in one sweep instead
+    /// of one particle per sweep, so a large cloth stops stretching with few substeps.
+    /// `0 ..= 16`; default 0 (off). Ignored on a cloth that is not a grid.
+    pub hierarchy_levels: u32,
+    /// Extra length allowed by the strain limits, as a fraction of the rest distance, `>= 0`.
+    /// Default 0.02.
+    pub hierarchy_slack: f32,
 }
 
 impl Default for XpbdSettings {
@@ -308,6 +318,8 @@ impl Default for XpbdSettings {
             iterations: 1,
             tethers: false,
             tether_slack: 0.02,
+            hierarchy_levels: 0,
+            hierarchy_slack: 0.02,
         }
     }
 }
@@ -446,6 +458,14 @@ impl SimConfig {
             ));
         }
         check::non_negative("config.xpbd.tether_slack", self.xpbd.tether_slack)?;
+        if self.xpbd.hierarchy_levels > 16 {
+            return Err(ClothError::invalid(
+                "config.xpbd.hierarchy_levels",
+                self.xpbd.hierarchy_levels,
+                "0 ..= 16",
+            ));
+        }
+        check::non_negative("config.xpbd.hierarchy_slack", self.xpbd.hierarchy_slack)?;
         if let Some(sc) = self.self_collision {
             check::positive("config.self_collision.thickness", sc.thickness)?;
             check::non_negative("config.self_collision.friction", sc.friction)?;

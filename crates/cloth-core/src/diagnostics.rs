@@ -168,6 +168,39 @@ pub(crate) fn measure(
     (stats, bad)
 }
 
+/// Quantiles of the stretch strain (|L| − L0)/L0 over every spring of `class` at `position`
+/// (nearest rank: the smallest strain that at least a fraction `q` of the springs do not
+/// exceed), one per entry of `quantiles` (each in `0 ..= 1`; 1 is the maximum). `NaN` for an
+/// empty class. For reports, outside the step: it sorts a copy of the strains.
+#[must_use]
+pub fn strain_quantiles(
+    topology: &Topology,
+    position: &[Vec3],
+    class: SpringClass,
+    quantiles: &[f64],
+) -> Vec<f32> {
+    let mut strains: Vec<f32> = SpringKind::ALL
+        .iter()
+        .filter(|k| k.class() == class)
+        .flat_map(|&k| topology.springs_of(k))
+        .map(|s| {
+            (position[s.a as usize].distance(position[s.b as usize]) - s.rest_length)
+                / s.rest_length
+        })
+        .collect();
+    strains.sort_by(f32::total_cmp);
+    quantiles
+        .iter()
+        .map(|&q| {
+            if strains.is_empty() {
+                return f32::NAN;
+            }
+            let rank = (q.clamp(0.0, 1.0) * strains.len() as f64).ceil() as usize;
+            strains[rank.clamp(1, strains.len()) - 1]
+        })
+        .collect()
+}
+
 /// A conservative estimate of the largest substep at which symplectic Euler and Verlet stay
 /// stable for this material and smallest particle mass `min_mass` (kg): h < √(2m/Σk), from
 /// the Gershgorin bound ω² ≤ 2Σk/m on the stiffest particle, whose springs sum to

@@ -603,6 +603,13 @@ pub struct XpbdDesc {
     pub tethers: bool,
     #[serde(default = "d_slack")]
     pub tether_slack: f32,
+    #[serde(default)]
+    pub hierarchy_levels: u32,
+    #[serde(default = "d_hslack")]
+    pub hierarchy_slack: f32,
+}
+fn d_hslack() -> f32 {
+    XpbdSettings::default().hierarchy_slack
 }
 fn d_iter() -> u32 {
     XpbdSettings::default().iterations
@@ -616,6 +623,8 @@ impl Default for XpbdDesc {
             iterations: d_iter(),
             tethers: true,
             tether_slack: d_slack(),
+            hierarchy_levels: 0,
+            hierarchy_slack: d_hslack(),
         }
     }
 }
@@ -1105,6 +1114,14 @@ impl Scene {
             ));
         }
         non_negative("solver.xpbd.tether_slack", s.xpbd.tether_slack)?;
+        if s.xpbd.hierarchy_levels > 16 {
+            return Err(invalid(
+                "solver.xpbd.hierarchy_levels",
+                s.xpbd.hierarchy_levels,
+                "0 ..= 16",
+            ));
+        }
+        non_negative("solver.xpbd.hierarchy_slack", s.xpbd.hierarchy_slack)?;
         if !(s.limits.max_stretch_ratio.is_finite() && s.limits.max_stretch_ratio > 1.0) {
             return Err(invalid(
                 "solver.limits.max_stretch_ratio",
@@ -1191,6 +1208,8 @@ impl Scene {
             iterations: s.xpbd.iterations,
             tethers: s.xpbd.tethers,
             tether_slack: s.xpbd.tether_slack,
+            hierarchy_levels: s.xpbd.hierarchy_levels,
+            hierarchy_slack: s.xpbd.hierarchy_slack,
         };
         config
     }
@@ -1433,6 +1452,8 @@ const KNOWN_KEYS: &[&str] = &[
     "iterations",
     "tethers",
     "tether_slack",
+    "hierarchy_levels",
+    "hierarchy_slack",
     "max_stretch_ratio",
     "max_speed",
     "eye",
@@ -1681,6 +1702,8 @@ impl Scene {
                 iterations: c.xpbd.iterations,
                 tethers: c.xpbd.tethers,
                 tether_slack: c.xpbd.tether_slack,
+                hierarchy_levels: c.xpbd.hierarchy_levels,
+                hierarchy_slack: c.xpbd.hierarchy_slack,
             },
             limits: LimitsDesc {
                 max_stretch_ratio: c.limits.max_stretch_ratio,

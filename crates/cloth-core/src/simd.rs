@@ -19,6 +19,7 @@ use glam::Vec3;
 
 use crate::error::{ClothError, Result};
 use crate::solver::grid_kernel::{self, Band, BandResult, Job};
+use crate::solver::grid_xpbd::{self, Shared};
 
 /// Which code runs the substeps of the explicit integrators (forward Euler, symplectic
 /// Euler, position Verlet) on a grid cloth.
@@ -111,13 +112,18 @@ pub fn kernel() -> Kernel {
     CHOSEN.with(Cell::get).unwrap_or_else(Kernel::best)
 }
 
-/// The kernel that steps `sim` on this thread: [`kernel`] when the grid fast path applies
-/// (an explicit integrator, a cloth built by [`crate::GridBuilder`], air drag off),
-/// [`Kernel::Reference`] otherwise.
+/// The kernel that steps `sim` on this thread: [`kernel`] when a grid fast path applies (an
+/// explicit integrator on a cloth built by [`crate::GridBuilder`] with air drag off, or XPBD
+/// on such a cloth without self-collision or tethers to pins), [`Kernel::Reference`]
+/// otherwise.
 #[must_use]
 pub fn kernel_for(sim: &crate::Simulation) -> Kernel {
     let k = kernel();
-    if grid_kernel::applies(k, sim.config().integrator, sim.config(), sim.topology()) {
+    let cfg = sim.config();
+    let xpbd = cfg.integrator == crate::Integrator::Xpbd
+        && k != Kernel::Reference
+        && grid_xpbd::applies(cfg, sim.topology(), &sim.particles().inv_mass);
+    if xpbd || grid_kernel::applies(k, cfg.integrator, cfg, sim.topology()) {
         k
     } else {
         Kernel::Reference
@@ -175,4 +181,105 @@ fn band_avx512(
     out_v: &mut [Vec3],
 ) -> BandResult {
     grid_kernel::band(job, r0, r1, band, out_x, out_v)
+}
+
+/// One vertical pass's two rows of the grid XPBD path (see `solver::grid_xpbd`), with the
+/// chosen kernel.
+pub(crate) fn xpbd_pairs(
+    a: [&mut [f32]; 3],
+    b: [&mut [f32]; 3],
+    shared: &Shared<'_>,
+    g: (usize, usize, usize),
+    lambda: &mut [f32],
+) {
+    match kernel() {
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx512 if Kernel::Avx512.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { pairs_avx512(a, b, shared, g, lambda) }
+        }
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 if Kernel::Avx2.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { pairs_avx2(a, b, shared, g, lambda) }
+        }
+        _ => grid_xpbd::pairs(a, b, shared, g, lambda),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn pairs_avx2(
+    a: [&mut [f32]; 3],
+    b: [&mut [f32]; 3],
+    shared: &Shared<'_>,
+    g: (usize, usize, usize),
+    lambda: &mut [f32],
+) {
+    grid_xpbd::pairs(a, b, shared, g, lambda);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+fn pairs_avx512(
+    a: [&mut [f32]; 3],
+    b: [&mut [f32]; 3],
+    shared: &Shared<'_>,
+    g: (usize, usize, usize),
+    lambda: &mut [f32],
+) {
+    grid_xpbd::pairs(a, b, shared, g, lambda);
+}
+
+/// One row of a horizontal pass of the grid XPBD path, with the chosen kernel.
+pub(crate) fn xpbd_row(
+    x: [&mut [f32]; 3],
+    corr: [&mut [f32]; 3],
+    shared: &Shared<'_>,
+    g0: usize,
+    s: usize,
+    lambda: &mut [f32],
+    mask: &[f32],
+) {
+    match kernel() {
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx512 if Kernel::Avx512.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { row_avx512(x, corr, shared, g0, s, lambda, mask) }
+        }
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 if Kernel::Avx2.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { row_avx2(x, corr, shared, g0, s, lambda, mask) }
+        }
+        _ => grid_xpbd::row(x, corr, shared, g0, s, lambda, mask),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn row_avx2(
+    x: [&mut [f32]; 3],
+    corr: [&mut [f32]; 3],
+    shared: &Shared<'_>,
+    g0: usize,
+    s: usize,
+    lambda: &mut [f32],
+    mask: &[f32],
+) {
+    grid_xpbd::row(x, corr, shared, g0, s, lambda, mask);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+fn row_avx512(
+    x: [&mut [f32]; 3],
+    corr: [&mut [f32]; 3],
+    shared: &Shared<'_>,
+    g0: usize,
+    s: usize,
+    lambda: &mut [f32],
+    mask: &[f32],
+) {
+    grid_xpbd::row(x, corr, shared, g0, s, lambda, mask);
 }

@@ -71,8 +71,9 @@ fn steps_after_the_first_do_not_allocate() {
     }
 }
 
-/// The explicit integrators' grid fast path (air off) on a pool of 2 threads: still no
-/// allocation after the first step (the bands' buffers and the next-state arrays are kept).
+/// The explicit integrators' grid fast path (air off) and XPBD's grid path (air on, strain
+/// limits on) on a pool of 2 threads: still no allocation after the first step (the bands'
+/// buffers, the next-state arrays and the grid XPBD scratch are kept).
 #[test]
 fn threaded_fast_path_steps_do_not_allocate() {
     let _serial = SERIAL
@@ -82,10 +83,15 @@ fn threaded_fast_path_steps_do_not_allocate() {
         .num_threads(2)
         .build()
         .expect("pool");
-    for integrator in Integrator::EXPLICIT {
+    for integrator in Integrator::EXPLICIT.into_iter().chain([Integrator::Xpbd]) {
         let mut sim = presets::drape(32, integrator).expect("drape");
         let mut config = *sim.config();
-        config.air.density = 0.0;
+        if integrator == Integrator::Xpbd {
+            config.xpbd.hierarchy_levels = 3;
+            config.xpbd.tethers = false;
+        } else {
+            config.air.density = 0.0;
+        }
         if integrator == Integrator::ForwardEuler {
             // Forward Euler gains energy every substep: small ones keep it stable here.
             config.substeps *= 10;

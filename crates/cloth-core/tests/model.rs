@@ -859,14 +859,30 @@ fn run_golden(integrator: Integrator) -> (u64, Vec<Vec3>) {
 /// no FMA contraction).
 // Updated on purpose when `forces::accumulate` went from three divisions per spring
 // (l / |l|) to one reciprocal and three products (l · (1/|l|)), which the grid fast path
-// shares; XPBD does not use that spring force and kept its digest.
+// shares; XPBD does not use that spring force and kept its digest. Updated on purpose when
+// XPBD on a grid cloth went to the grid path (coloured Gauss–Seidel, `solver::grid_xpbd`),
+// the default wherever a grid kernel runs; its reference path keeps the old digest
+// (`XPBD_REFERENCE_GOLDEN`).
 const GOLDEN: [(Integrator, u64); 5] = [
     (Integrator::ForwardEuler, 0x8265_4261_b513_35d5),
     (Integrator::SymplecticEuler, 0x2c96_4665_48c0_19de),
     (Integrator::Verlet, 0xa257_faa0_6e96_5c38),
     (Integrator::ImplicitEuler, 0x02c3_b0b9_cab7_f8d2),
-    (Integrator::Xpbd, 0x89ab_2b6a_f3ee_c2de),
+    (Integrator::Xpbd, 0x5c70_c724_4d18_2579),
 ];
+
+/// XPBD's digest on the reference path (storage-order Gauss–Seidel).
+const XPBD_REFERENCE_GOLDEN: u64 = 0x89ab_2b6a_f3ee_c2de;
+
+/// Determinism of XPBD's reference path: its digest is unchanged by the grid path.
+#[test]
+fn golden_digest_of_the_xpbd_reference_path() {
+    use cloth_core::simd::{self, Kernel};
+    simd::set_kernel(Some(Kernel::Reference)).unwrap();
+    let (h, _) = run_golden(Integrator::Xpbd);
+    simd::set_kernel(None).unwrap();
+    assert_eq!(h, XPBD_REFERENCE_GOLDEN, "{h:#018x}");
+}
 
 /// Determinism: two independent runs of the same scene give bit-identical positions, and
 /// the FNV-1a digest of the position bits equals the golden value for each integrator.

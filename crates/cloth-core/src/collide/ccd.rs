@@ -53,15 +53,16 @@ pub(crate) fn resolve(
     particles: &mut Particles,
     h: f32,
 ) -> u32 {
+    use rayon::prelude::*;
+    // Each particle is handled on its own: chunks in parallel give the same result.
+    const CHUNK: usize = 1024;
     let p = particles;
-    resolve_in(
-        colliders,
-        start,
-        &mut p.position,
-        &mut p.velocity,
-        &p.inv_mass,
-        h,
-    )
+    p.position
+        .par_chunks_mut(CHUNK)
+        .zip(p.velocity.par_chunks_mut(CHUNK))
+        .zip(p.inv_mass.par_chunks(CHUNK).zip(start.par_chunks(CHUNK)))
+        .map(|((x, v), (w, a))| resolve_in(colliders, a, x, v, w, h))
+        .sum()
 }
 
 /// [`resolve`] on a range of particles (slices of equal length). Each particle is handled on

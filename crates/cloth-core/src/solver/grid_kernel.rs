@@ -39,17 +39,17 @@ use crate::simd::{self, Kernel};
 use crate::topology::{SpringKind, Topology};
 
 /// Spring classes of the grid, as shifted row patterns.
-const WARP: usize = 0;
-const WEFT: usize = 1;
-const DIAG: usize = 2;
-const ANTI: usize = 3;
-const BENDV: usize = 4;
-const BENDH: usize = 5;
+pub(super) const WARP: usize = 0;
+pub(super) const WEFT: usize = 1;
+pub(super) const DIAG: usize = 2;
+pub(super) const ANTI: usize = 3;
+pub(super) const BENDV: usize = 4;
+pub(super) const BENDH: usize = 5;
 
 /// Per class: (row offset of the second end, column offset of the first end, column
 /// offset of the second end, spring kind). The spring of class `k` at slot `(r, c)` joins
 /// `(r, c + a_dc)` to `(r + dr, c + b_dc)`.
-const CLASSES: [(usize, usize, usize, SpringKind); 6] = [
+pub(super) const CLASSES: [(usize, usize, usize, SpringKind); 6] = [
     (1, 0, 0, SpringKind::Warp),
     (0, 0, 1, SpringKind::Weft),
     (1, 0, 1, SpringKind::Shear),
@@ -167,7 +167,7 @@ impl Band {
 
 /// Whether a force kind contributes at all (the reference skips a kind whose stiffness and
 /// damping are both zero, or all springs when both switches are off).
-fn kind_params(config: &SimConfig, kind: SpringKind) -> Option<(f32, f32)> {
+pub(super) fn kind_params(config: &SimConfig, kind: SpringKind) -> Option<(f32, f32)> {
     let sw = config.forces;
     if !(sw.springs || sw.dashpots) {
         return None;
@@ -183,7 +183,7 @@ fn kind_params(config: &SimConfig, kind: SpringKind) -> Option<(f32, f32)> {
 }
 
 /// The reference's air term is per triangle; the fast path runs only when it is off.
-fn air_active(config: &SimConfig) -> bool {
+pub(super) fn air_active(config: &SimConfig) -> bool {
     let air = &config.air;
     config.forces.air
         && !(air.density == 0.0 || (air.drag_coefficient == 0.0 && air.lift_coefficient == 0.0))
@@ -202,7 +202,10 @@ impl GridScratch {
         {
             return ok;
         }
-        let ok = rows * cols == n && rows >= 2 && cols >= 2 && self.load_rest(topology, rows, cols);
+        let ok = rows * cols == n
+            && rows >= 2
+            && cols >= 2
+            && load_rest(&mut self.rest, topology, rows, cols);
         self.key = Some((rows, cols, springs, ok));
         if ok {
             let padded = cols + 2 * PAD;
@@ -213,47 +216,54 @@ impl GridScratch {
         }
         ok
     }
+}
 
-    /// Replays the builder's spring order and checks every spring against it.
-    fn load_rest(&mut self, topology: &Topology, rows: usize, cols: usize) -> bool {
-        for r in &mut self.rest {
-            // LANES slack: the spring kernel reads whole chunks past the last row's end.
-            r.clear();
-            r.resize(rows * cols + LANES, 0.0);
-        }
-        let idx = |r: usize, c: usize| (r * cols + c) as u32;
-        let mut next = [0_usize; 4];
-        let mut take = |rest: &mut [Vec<f32>; 6], class: usize, r: usize, c: usize| -> bool {
-            let (dr, a_dc, b_dc, kind) = CLASSES[class];
-            let list = topology.springs_of(kind);
-            let Some(s) = list.get(next[kind as usize]) else {
-                return false;
-            };
-            next[kind as usize] += 1;
-            if s.a != idx(r, c + a_dc) || s.b != idx(r + dr, c + b_dc) {
-                return false;
-            }
-            rest[class][r * cols + c] = s.rest_length;
-            true
-        };
-        for r in 0..rows {
-            for c in 0..cols {
-                let ok = (r + 1 >= rows || take(&mut self.rest, WARP, r, c))
-                    && (c + 1 >= cols || take(&mut self.rest, WEFT, r, c))
-                    && (r + 1 >= rows
-                        || c + 1 >= cols
-                        || (take(&mut self.rest, DIAG, r, c) && take(&mut self.rest, ANTI, r, c)))
-                    && (r + 2 >= rows || take(&mut self.rest, BENDV, r, c))
-                    && (c + 2 >= cols || take(&mut self.rest, BENDH, r, c));
-                if !ok {
-                    return false;
-                }
-            }
-        }
-        SpringKind::ALL
-            .iter()
-            .all(|&k| next[k as usize] == topology.springs_of(k).len())
+/// Replays the builder's spring order, checks every spring against it and records the rest
+/// lengths by class and slot `r * cols + c` (see [`CLASSES`]) into `rest`. Returns whether the
+/// springs are exactly the grid's.
+pub(super) fn load_rest(
+    rest: &mut [Vec<f32>; 6],
+    topology: &Topology,
+    rows: usize,
+    cols: usize,
+) -> bool {
+    for r in rest.iter_mut() {
+        // LANES slack: the spring kernel reads whole chunks past the last row's end.
+        r.clear();
+        r.resize(rows * cols + LANES, 0.0);
     }
+    let idx = |r: usize, c: usize| (r * cols + c) as u32;
+    let mut next = [0_usize; 4];
+    let mut take = |rest: &mut [Vec<f32>; 6], class: usize, r: usize, c: usize| -> bool {
+        let (dr, a_dc, b_dc, kind) = CLASSES[class];
+        let list = topology.springs_of(kind);
+        let Some(s) = list.get(next[kind as usize]) else {
+            return false;
+        };
+        next[kind as usize] += 1;
+        if s.a != idx(r, c + a_dc) || s.b != idx(r + dr, c + b_dc) {
+            return false;
+        }
+        rest[class][r * cols + c] = s.rest_length;
+        true
+    };
+    for r in 0..rows {
+        for c in 0..cols {
+            let ok = (r + 1 >= rows || take(rest, WARP, r, c))
+                && (c + 1 >= cols || take(rest, WEFT, r, c))
+                && (r + 1 >= rows
+                    || c + 1 >= cols
+                    || (take(rest, DIAG, r, c) && take(rest, ANTI, r, c)))
+                && (r + 2 >= rows || take(rest, BENDV, r, c))
+                && (c + 2 >= cols || take(rest, BENDH, r, c));
+            if !ok {
+                return false;
+            }
+        }
+    }
+    SpringKind::ALL
+        .iter()
+        .all(|&k| next[k as usize] == topology.springs_of(k).len())
 }
 
 /// Whether the fast path runs for these settings (the topology's springs are checked

@@ -7,6 +7,7 @@
 
 mod explicit;
 pub(crate) mod grid_kernel;
+pub(crate) mod grid_xpbd;
 mod implicit;
 mod xpbd;
 

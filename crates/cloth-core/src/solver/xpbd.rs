@@ -38,6 +38,12 @@ pub(crate) struct XpbdScratch {
     tethers: Vec<Tether>,
     /// The pinned set the tethers were built for.
     tether_key: Vec<u32>,
+    /// Multi-resolution strain limits of the reference path: `(a, b, largest distance)`.
+    limits: Vec<Tether>,
+    /// `(levels, slack bits, particles)` the limits were built for.
+    limits_key: Option<(u32, u32, usize)>,
+    /// The grid path.
+    pub(super) grid: super::grid_xpbd::XpbdGrid,
 }
 
 impl XpbdScratch {
@@ -83,6 +89,48 @@ impl XpbdScratch {
 }
 
 impl XpbdScratch {
+    /// Builds the reference path's multi-resolution strain limits (the same pairs as the grid
+    /// path's, see `grid_xpbd`): particles 2, 4, …, 2^levels apart along the warp and the weft
+    /// of a grid cloth, at most (1 + slack) times their rest distance apart. None on a cloth
+    /// that is not a grid.
+    fn update_limits(&mut self, ctx: &SubstepCtx<'_>) {
+        let settings = ctx.config.xpbd;
+        let n = ctx.particles.len();
+        let key = (
+            settings.hierarchy_levels,
+            settings.hierarchy_slack.to_bits(),
+            n,
+        );
+        if self.limits_key == Some(key) {
+            return;
+        }
+        self.limits_key = Some(key);
+        self.limits.clear();
+        let Some((rows, cols)) = ctx.topology.grid() else {
+            return;
+        };
+        let scale = 1.0 + settings.hierarchy_slack;
+        let rest = ctx.rest;
+        for l in 1..=settings.hierarchy_levels {
+            let s = 1_usize << l;
+            if s >= rows.max(cols) {
+                break;
+            }
+            for (dr, dc) in [(s, 0), (0, s)] {
+                for r in 0..rows.saturating_sub(dr) {
+                    for c in 0..cols.saturating_sub(dc) {
+                        let (a, b) = (r * cols + c, (r + dr) * cols + c + dc);
+                        self.limits.push(Tether {
+                            particle: a as u32,
+                            anchor: b as u32,
+                            max_distance: scale * rest[a].distance(rest[b]),
+                        });
+                    }
+                }
+            }
+        }
+    }
+
     /// The positions at the start of the last substep.
     pub(super) fn start(&self) -> &[Vec3] {
         &self.prev
@@ -100,13 +148,19 @@ pub(super) fn substep(
     let cfg = ctx.config;
     let settings = cfg.xpbd;
 
-    // 1. predict, with external forces (gravity, damping, air) only.
-    let mut ext = *cfg;
-    ext.forces.springs = false;
-    ext.forces.dashpots = false;
-    crate::forces::accumulate(&ext, ctx.topology, ctx.particles, ctx.wind, force);
-    sc.prev.clone_from(&ctx.particles.position);
-    {
+    // 1. predict, with external forces (gravity, damping, air) only: on the grid path when it
+    //    applies (same bits, rows in parallel).
+    let grid = crate::simd::kernel() != crate::simd::Kernel::Reference
+        && super::grid_xpbd::applies(cfg, ctx.topology, &ctx.particles.inv_mass)
+        && sc.grid.prepare(ctx.topology, ctx.particles.len());
+    if grid {
+        sc.grid.predict(ctx, &mut sc.prev);
+    } else {
+        let mut ext = *cfg;
+        ext.forces.springs = false;
+        ext.forces.dashpots = false;
+        crate::forces::accumulate(&ext, ctx.topology, ctx.particles, ctx.wind, force);
+        sc.prev.clone_from(&ctx.particles.position);
         let p = &mut *ctx.particles;
         for (((x, v), &w), &f) in p
             .position
@@ -123,21 +177,12 @@ pub(super) fn substep(
         sc.update_tethers(ctx);
     }
 
-    // 2. constraint sweeps.
-    sc.lambda.clear();
-    sc.lambda.resize(ctx.topology.springs().len(), 0.0);
-    let mut contacts = 0;
-    for _ in 0..settings.iterations {
-        solve_springs(ctx, sc, h);
-        if settings.tethers {
-            solve_tethers(&mut *ctx.particles, &sc.tethers);
-        }
-        if let Some(settings) = cfg.self_collision {
-            crate::collide::self_collision::resolve(hash, ctx.particles, ctx.rest, settings, false);
-        }
-        contacts = solve_contacts(ctx, &sc.prev, h);
+    // 2. constraint sweeps: on the grid path when it applies.
+    if grid {
+        ctx.contacts.contacts = sc.grid.sweeps(ctx, &sc.prev);
+    } else {
+        reference_sweeps(ctx, sc, hash);
     }
-    ctx.contacts.contacts = contacts;
 
     // 3. velocities from positions.
     let inv_h = 1.0 / h;
@@ -152,6 +197,37 @@ pub(super) fn substep(
             *v = (x - x0) * inv_h;
         }
     }
+}
+
+/// Stage 2 on the reference path: `iterations` sweeps in storage order.
+fn reference_sweeps(
+    ctx: &mut SubstepCtx<'_>,
+    sc: &mut XpbdScratch,
+    hash: &mut crate::collide::self_collision::SelfCollisionScratch,
+) {
+    let h = ctx.h;
+    let cfg = ctx.config;
+    let settings = cfg.xpbd;
+    if settings.hierarchy_levels > 0 {
+        sc.update_limits(ctx);
+    }
+    sc.lambda.clear();
+    sc.lambda.resize(ctx.topology.springs().len(), 0.0);
+    let mut contacts = 0;
+    for _ in 0..settings.iterations {
+        solve_springs(ctx, sc, h);
+        if settings.tethers {
+            solve_tethers(&mut *ctx.particles, &sc.tethers);
+        }
+        if settings.hierarchy_levels > 0 {
+            solve_limits(&mut *ctx.particles, &sc.limits);
+        }
+        if let Some(settings) = cfg.self_collision {
+            crate::collide::self_collision::resolve(hash, ctx.particles, ctx.rest, settings, false);
+        }
+        contacts = solve_contacts(ctx, &sc.prev, h);
+    }
+    ctx.contacts.contacts = contacts;
 }
 
 fn solve_springs(ctx: &mut SubstepCtx<'_>, sc: &mut XpbdScratch, h: f32) {
@@ -202,6 +278,23 @@ fn solve_springs(ctx: &mut SubstepCtx<'_>, sc: &mut XpbdScratch, h: f32) {
     }
 }
 
+/// One-sided distance limits between two free-or-pinned particles, mass-weighted.
+fn solve_limits(p: &mut crate::particles::Particles, limits: &[Tether]) {
+    for t in limits {
+        let (a, b) = (t.particle as usize, t.anchor as usize);
+        let (wa, wb) = (p.inv_mass[a], p.inv_mass[b]);
+        let w = wa + wb;
+        let l = p.position[a] - p.position[b];
+        let len = l.length();
+        if w > 0.0 && len > t.max_distance {
+            let grad = l / len;
+            let dl = (t.max_distance - len) / w;
+            p.position[a] += (wa * dl) * grad;
+            p.position[b] -= (wb * dl) * grad;
+        }
+    }
+}
+
 fn solve_tethers(p: &mut crate::particles::Particles, tethers: &[Tether]) {
     for t in tethers {
         let (i, a) = (t.particle as usize, t.anchor as usize);
@@ -219,31 +312,39 @@ fn solve_contacts(ctx: &mut SubstepCtx<'_>, prev: &[Vec3], h: f32) -> u32 {
     let mut contacts = 0;
     let p = &mut *ctx.particles;
     for col in ctx.colliders {
-        let (mu_s, mu_k) = (
-            col.friction.static_coefficient,
-            col.friction.kinetic_coefficient,
-        );
         for ((x, &x0), &w) in p.position.iter_mut().zip(prev).zip(&p.inv_mass) {
-            if w == 0.0 {
-                continue;
-            }
-            let (dist, nrm) = col.shape.distance_within(*x, col.contact_range());
-            let phi = dist - col.thickness;
-            if phi >= 0.0 {
-                continue;
-            }
-            contacts += 1;
-            let push = -phi;
-            *x += push * nrm;
-            let rel = (*x - x0) - col.velocity_at(*x) * h;
-            let tangential = rel - rel.dot(nrm) * nrm;
-            let t_len = tangential.length();
-            if t_len <= mu_s * push {
-                *x -= tangential;
-            } else if t_len > 0.0 {
-                *x -= tangential * (mu_k * push / t_len).min(1.0);
+            if w != 0.0 && contact(col, x, x0, h) {
+                contacts += 1;
             }
         }
     }
     contacts
+}
+
+/// The contact of one free particle at `x` (at `x0` at the start of the substep) with one
+/// collider: pushed out along the normal, then position-level Coulomb friction on its
+/// tangential displacement relative to the collider (static while it is at most μs times the
+/// push, else shortened by μk times the push). Returns whether it touched.
+#[inline]
+pub(super) fn contact(col: &crate::collide::Collider, x: &mut Vec3, x0: Vec3, h: f32) -> bool {
+    let (mu_s, mu_k) = (
+        col.friction.static_coefficient,
+        col.friction.kinetic_coefficient,
+    );
+    let (dist, nrm) = col.shape.distance_within(*x, col.contact_range());
+    let phi = dist - col.thickness;
+    if phi >= 0.0 {
+        return false;
+    }
+    let push = -phi;
+    *x += push * nrm;
+    let rel = (*x - x0) - col.velocity_at(*x) * h;
+    let tangential = rel - rel.dot(nrm) * nrm;
+    let t_len = tangential.length();
+    if t_len <= mu_s * push {
+        *x -= tangential;
+    } else if t_len > 0.0 {
+        *x -= tangential * (mu_k * push / t_len).min(1.0);
+    }
+    true
 }

@@ -1,0 +1,762 @@
+//! XPBD's fast path on a regular grid: coloured Gauss–Seidel over shifted rows, in parallel,
+//! with optional multi-resolution strain limits.
+//!
+//! The reference XPBD ([`super::xpbd`]) sweeps the springs one by one in storage order, a
+//! sequential Gauss–Seidel sweep. On a cloth built by [`crate::GridBuilder`] the springs of
+//! one class (warp, weft, the two shear diagonals, the two bend directions) split into two
+//! **colours** whose springs share no particle:
+//!
+//! | class | joins | colour of the spring at slot `(r, c)` |
+//! |---|---|---|
+//! | warp, diagonal, anti-diagonal | `(r, ·)`–`(r + 1, ·)` | `r mod 2` |
+//! | vertical bend | `(r, c)`–`(r + 2, c)` | `⌊r / 2⌋ mod 2` |
+//! | weft | `(r, c)`–`(r, c + 1)` | `c mod 2` |
+//! | horizontal bend | `(r, c)`–`(r, c + 2)` | `⌊c / 2⌋ mod 2` |
+//!
+//! Projecting the springs of one colour one after the other gives the same result in any
+//! order, so a colour is projected all at once, as whole rows: a vertical class pairs row
+//! `r` with row `r + d` (two disjoint slices, updated in place); a horizontal class computes
+//! each spring's correction from the row (masked to the colour) and then applies it to both
+//! ends. One sweep (stage 2 of a substep):
+//!
+//! 1. warp, weft, diagonal, anti-diagonal, vertical bend, horizontal bend, each colour 0
+//!    then colour 1, as compliant XPBD constraints (the reference's formula: compliance
+//!    α = 1/k, dashpot as constraint damping);
+//! 2. the multi-resolution strain limits, when `XpbdSettings::hierarchy_levels > 0` (after
+//!    Wang, O'Brien & Ramamoorthi 2010, "Multi-resolution isotropic strain limiting"): for
+//!    each spacing s = 2, 4, …, 2^levels, particles `s` apart along the warp and along the
+//!    weft may be at most `(1 + hierarchy_slack)` times their rest distance apart (a
+//!    one-sided, inextensible constraint, coloured by `⌊r / s⌋` or `⌊c / s⌋`). They carry a
+//!    pull across `s` particles in one projection, which plain sweeps need `s` sweeps (or
+//!    substeps) for;
+//! 3. collider contacts with position-level Coulomb friction, per particle (the reference's
+//!    routine, [`super::xpbd::contact`]).
+//!
+//! Every pass writes disjoint rows, so the rows are shared among the threads of the current
+//! rayon pool in any way and the result is the same bits for every thread count. The
+//! arithmetic is plain IEEE `f32` (no fused multiply-add, exact `sqrt` and division), so
+//! every instruction set gives the same bits too. The order differs from the reference's
+//! storage order, so the two agree to within the solver's convergence, not bit for bit
+//! (tested in `tests/xpbd_grid.rs`).
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::SubstepCtx;
+use super::grid_kernel::{CLASSES, load_rest};
+use crate::config::SimConfig;
+use crate::topology::Topology;
+
+/// How a pass projects its pairs.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Mode {
+    /// A compliant XPBD distance constraint: α̃ = 1/(k h²), γ = c/(k h).
+    Compliant { alpha: f32, gamma: f32 },
+    /// A one-sided limit: the pair may be at most its `rest` entry apart.
+    Limit,
+}
+
+/// Multi-resolution strain limits at one spacing.
+#[derive(Debug, Clone, Default)]
+struct Level {
+    spacing: usize,
+    /// Largest allowed distance by slot `r * cols + c`: `(r, c)`–`(r + s, c)`.
+    vertical: Vec<f32>,
+    /// Largest allowed distance by slot: `(r, c)`–`(r, c + s)`.
+    horizontal: Vec<f32>,
+}
+
+/// Scratch of the grid XPBD path.
+#[derive(Debug, Default, Clone)]
+pub(crate) struct XpbdGrid {
+    /// `(rows, cols, springs)` the scratch was prepared for, and whether it is the builder's
+    /// grid.
+    key: Option<(usize, usize, usize, bool)>,
+    rows: usize,
+    cols: usize,
+    /// Rest length per class and slot (see [`CLASSES`]).
+    rest: [Vec<f32>; 6],
+    /// Lagrange multipliers per class and slot, reset every substep.
+    lambda: [Vec<f32>; 6],
+    /// Multipliers the strain limits are handed (they have none; never read).
+    spare: Vec<f32>,
+    /// Positions x, y, z (structure of arrays), during the sweeps.
+    pos: [Vec<f32>; 3],
+    /// Positions at the start of the substep.
+    prev: [Vec<f32>; 3],
+    /// Inverse masses.
+    inv_mass: Vec<f32>,
+    /// Corrections of a horizontal pass, by component.
+    corr: [Vec<f32>; 3],
+    /// Colour masks (1.0 in the colour, 0.0 outside) by log2 of the spacing and colour.
+    masks: Vec<[Vec<f32>; 2]>,
+    /// Strain-limit levels and the `(levels, slack bits)` they were built for.
+    levels: Vec<Level>,
+    levels_key: Option<(u32, u32)>,
+    /// Air force of every triangle, divided by 3 (the share of each corner).
+    air: Vec<Vec3>,
+}
+
+/// Whether the grid path runs XPBD's sweeps for these settings: a cloth built by the grid
+/// builder, no self-collision and no tethers to pinned particles (which the reference path
+/// handles).
+pub(crate) fn applies(config: &SimConfig, topology: &Topology, inv_mass: &[f32]) -> bool {
+    topology.grid().is_some()
+        && config.self_collision.is_none()
+        && !(config.xpbd.tethers && inv_mass.contains(&0.0))
+}
+
+impl XpbdGrid {
+    /// Checks (once per topology) that the springs are the builder's grid; returns whether
+    /// the grid path can run.
+    pub(crate) fn prepare(&mut self, topology: &Topology, n: usize) -> bool {
+        let Some((rows, cols)) = topology.grid() else {
+            return false;
+        };
+        let springs = topology.springs().len();
+        if let Some((r, c, s, ok)) = self.key
+            && (r, c, s) == (rows, cols, springs)
+        {
+            return ok;
+        }
+        let ok = rows * cols == n
+            && rows >= 2
+            && cols >= 2
+            && load_rest(&mut self.rest, topology, rows, cols)
+            && grid_triangles(topology, rows, cols);
+        self.key = Some((rows, cols, springs, ok));
+        self.levels_key = None;
+        if ok {
+            self.rows = rows;
+            self.cols = cols;
+            for a in self
+                .lambda
+                .iter_mut()
+                .chain(&mut self.pos)
+                .chain(&mut self.prev)
+                .chain(&mut self.corr)
+                .chain([&mut self.inv_mass, &mut self.spare])
+            {
+                a.clear();
+                a.resize(n, 0.0);
+            }
+            self.air.clear();
+            self.air.resize(2 * (rows - 1) * (cols - 1), Vec3::ZERO);
+            self.masks.clear();
+            let mut s = 1;
+            while s < cols.max(rows) {
+                self.masks.push([0, 1].map(|colour| {
+                    (0..cols)
+                        .map(|c| f32::from(u8::from((c / s) % 2 == colour)))
+                        .collect()
+                }));
+                s *= 2;
+            }
+        }
+        ok
+    }
+
+    /// Builds the multi-resolution strain limits from the rest shape when their settings
+    /// changed.
+    fn prepare_levels(&mut self, levels: u32, slack: f32, rest: &[Vec3]) {
+        if self.levels_key == Some((levels, slack.to_bits())) {
+            return;
+        }
+        self.levels_key = Some((levels, slack.to_bits()));
+        let (rows, cols) = (self.rows, self.cols);
+        self.levels.clear();
+        let scale = 1.0 + slack;
+        for l in 1..=levels {
+            let s = 1_usize << l;
+            if s >= rows.max(cols) {
+                break;
+            }
+            let limit = |a: usize, b: usize| scale * rest[a].distance(rest[b]);
+            let mut level = Level {
+                spacing: s,
+                vertical: vec![0.0; rows * cols],
+                horizontal: vec![0.0; rows * cols],
+            };
+            for r in 0..rows {
+                for c in 0..cols {
+                    let i = r * cols + c;
+                    if r + s < rows {
+                        level.vertical[i] = limit(i, i + s * cols);
+                    }
+                    if c + s < cols {
+                        level.horizontal[i] = limit(i, i + s);
+                    }
+                }
+            }
+            self.levels.push(level);
+        }
+    }
+
+    /// Stage 1 of an XPBD substep on the grid, rows in parallel, with the reference's
+    /// arithmetic in the reference's order (so the same bits): the external force of every
+    /// particle (weight, global damping, then its share of the air force of each adjacent
+    /// triangle in triangle order), then `v ← v + h·f/m`, `start ← x`, `x ← x + h·v`.
+    pub(crate) fn predict(&mut self, ctx: &mut SubstepCtx<'_>, start: &mut Vec<Vec3>) {
+        let cfg = ctx.config;
+        let (rows, cols, h) = (self.rows, self.cols, ctx.h);
+        let sw = cfg.forces;
+        let gravity = if sw.gravity { cfg.gravity } else { Vec3::ZERO };
+        let damping = if sw.damping { cfg.damping } else { 0.0 };
+        let air = sw.air && super::grid_kernel::air_active(cfg);
+        let p = &mut *ctx.particles;
+        start.resize(p.len(), Vec3::ZERO);
+        if air {
+            let a = &cfg.air;
+            let (x, v, wind) = (&p.position, &p.velocity, ctx.wind);
+            self.air
+                .par_chunks_mut(2 * (cols - 1))
+                .enumerate()
+                .for_each(|(r, out)| {
+                    for (c, f) in out.chunks_exact_mut(2).enumerate() {
+                        let i = r * cols + c;
+                        let tris = [[i, i + cols, i + 1], [i + 1, i + cols, i + cols + 1]];
+                        for (f, [i, j, k]) in f.iter_mut().zip(tris) {
+                            *f = crate::forces::triangle_air_force(
+                                a.density,
+                                a.drag_coefficient,
+                                a.lift_coefficient,
+                                [x[i], x[j], x[k]],
+                                (v[i] + v[j] + v[k]) / 3.0,
+                                wind,
+                            ) / 3.0;
+                        }
+                    }
+                });
+        }
+        let tri = &self.air;
+        p.position
+            .par_chunks_mut(cols)
+            .zip(p.velocity.par_chunks_mut(cols))
+            .zip(start.par_chunks_mut(cols))
+            .zip(p.mass.par_chunks(cols).zip(p.inv_mass.par_chunks(cols)))
+            .enumerate()
+            .for_each(|(r, (((x, v), x0), (m, w)))| {
+                for c in 0..cols {
+                    let mut f = m[c] * gravity - damping * v[c];
+                    if air {
+                        // Triangles with this corner, in triangle order: cell (r−1, c−1)'s
+                        // second, cell (r−1, c)'s two, cell (r, c−1)'s two, cell (r, c)'s
+                        // first.
+                        let t =
+                            |rr: usize, cc: usize, k: usize| tri[2 * (rr * (cols - 1) + cc) + k];
+                        if r > 0 {
+                            if c > 0 {
+                                f += t(r - 1, c - 1, 1);
+                            }
+                            if c + 1 < cols {
+                                f += t(r - 1, c, 0);
+                                f += t(r - 1, c, 1);
+                            }
+                        }
+                        if r + 1 < rows {
+                            if c > 0 {
+                                f += t(r, c - 1, 0);
+                                f += t(r, c - 1, 1);
+                            }
+                            if c + 1 < cols {
+                                f += t(r, c, 0);
+                            }
+                        }
+                    }
+                    v[c] += (h * w[c]) * f;
+                    x0[c] = x[c];
+                    x[c] += h * v[c];
+                }
+            });
+    }
+
+    /// Stage 2 of an XPBD substep on the grid: `iterations` sweeps (see the module docs),
+    /// from the predicted positions in `ctx.particles` and the substep's start positions
+    /// `start`; the positions are written back. Returns the contact count of the last sweep.
+    pub(crate) fn sweeps(&mut self, ctx: &mut SubstepCtx<'_>, start: &[Vec3]) -> u32 {
+        let cfg = ctx.config;
+        let settings = cfg.xpbd;
+        let h = ctx.h;
+        if settings.hierarchy_levels > 0 {
+            self.prepare_levels(
+                settings.hierarchy_levels,
+                settings.hierarchy_slack,
+                ctx.rest,
+            );
+        }
+        let p = &mut *ctx.particles;
+        scatter(&p.position, &mut self.pos);
+        scatter(start, &mut self.prev);
+        self.inv_mass.copy_from_slice(&p.inv_mass);
+        for l in &mut self.lambda {
+            l.fill(0.0);
+        }
+
+        // Per class: the mode, or None when its kind is off.
+        let modes: [Option<Mode>; 6] = std::array::from_fn(|class| {
+            let kind = CLASSES[class].3;
+            let params = cfg.material.params(kind);
+            let k = if cfg.forces.springs {
+                params.stiffness
+            } else {
+                0.0
+            };
+            if k == 0.0 {
+                return None;
+            }
+            let c = if cfg.forces.dashpots {
+                params.damping
+            } else {
+                0.0
+            };
+            Some(Mode::Compliant {
+                alpha: 1.0 / (k * h * h),
+                gamma: c / (k * h),
+            })
+        });
+
+        let mut contacts = 0;
+        for _ in 0..settings.iterations {
+            for (class, mode) in modes.iter().enumerate() {
+                let Some(mode) = *mode else { continue };
+                let (dr, a_dc, b_dc, _) = CLASSES[class];
+                for colour in 0..2 {
+                    if dr == 0 {
+                        self.horizontal(b_dc, colour, Rest::Class(class), mode);
+                    } else {
+                        self.vertical(dr, a_dc, b_dc, colour, Rest::Class(class), mode);
+                    }
+                }
+            }
+            for level in 0..self.levels.len() {
+                let s = self.levels[level].spacing;
+                for colour in 0..2 {
+                    if s < self.rows {
+                        self.vertical(s, 0, 0, colour, Rest::Vertical(level), Mode::Limit);
+                    }
+                    if s < self.cols {
+                        self.horizontal(s, colour, Rest::Horizontal(level), Mode::Limit);
+                    }
+                }
+            }
+            contacts = self.contacts(ctx.colliders, h);
+        }
+        gather(&self.pos, &mut ctx.particles.position);
+        contacts
+    }
+
+    /// The multipliers of a pass, taken out of the scratch for the pass (limits get a spare
+    /// array).
+    fn take_lambda(&mut self, which: Rest) -> Vec<f32> {
+        match which {
+            Rest::Class(c) => std::mem::take(&mut self.lambda[c]),
+            _ => std::mem::take(&mut self.spare),
+        }
+    }
+
+    fn put_lambda(&mut self, which: Rest, lambda: Vec<f32>) {
+        match which {
+            Rest::Class(c) => self.lambda[c] = lambda,
+            _ => self.spare = lambda,
+        }
+    }
+
+    /// One colour of a class joining row `r` to row `r + dr`: slot `(r, c)` joins
+    /// `(r, c + a_dc)` to `(r + dr, c + b_dc)`; colour `⌊r / dr⌋ mod 2`. Rows are handed out
+    /// in blocks of `2·dr` (rows `[0, dr)` of a block against rows `[dr, 2·dr)`).
+    fn vertical(
+        &mut self,
+        dr: usize,
+        a_dc: usize,
+        b_dc: usize,
+        colour: usize,
+        which: Rest,
+        mode: Mode,
+    ) {
+        let cols = self.cols;
+        let first = colour * dr * cols;
+        let block = 2 * dr * cols;
+        let m = cols - a_dc.max(b_dc);
+        let mut lambda = self.take_lambda(which);
+        let [x, y, z] = &mut self.pos;
+        if first >= x.len() {
+            self.put_lambda(which, lambda);
+            return;
+        }
+        let rest = rest_of(&self.rest, &self.levels, which);
+        let (prev, w) = (&self.prev, &self.inv_mass);
+        let shared = Shared {
+            prev,
+            w,
+            rest,
+            mode,
+        };
+        x[first..]
+            .par_chunks_mut(block)
+            .zip(y[first..].par_chunks_mut(block))
+            .zip(z[first..].par_chunks_mut(block))
+            .zip(lambda[first..].par_chunks_mut(block))
+            .enumerate()
+            .for_each(|(i, (((bx, by), bz), bl))| {
+                let rows_here = bx.len() / cols;
+                let row0 = colour * dr + i * 2 * dr;
+                for r in 0..dr.min(rows_here.saturating_sub(dr)) {
+                    let (ga, gb) = ((row0 + r) * cols, (row0 + r + dr) * cols);
+                    let (xa, xb) = rows_pair(bx, r, dr, cols);
+                    let (ya, yb) = rows_pair(by, r, dr, cols);
+                    let (za, zb) = rows_pair(bz, r, dr, cols);
+                    let lam = &mut bl[r * cols..r * cols + m];
+                    crate::simd::xpbd_pairs(
+                        [
+                            &mut xa[a_dc..a_dc + m],
+                            &mut ya[a_dc..a_dc + m],
+                            &mut za[a_dc..a_dc + m],
+                        ],
+                        [
+                            &mut xb[b_dc..b_dc + m],
+                            &mut yb[b_dc..b_dc + m],
+                            &mut zb[b_dc..b_dc + m],
+                        ],
+                        &shared,
+                        (ga + a_dc, gb + b_dc, ga),
+                        lam,
+                    );
+                }
+            });
+        self.put_lambda(which, lambda);
+    }
+
+    /// One colour of a class joining `(r, c)` to `(r, c + s)`, colour `⌊c / s⌋ mod 2`: every
+    /// row's corrections first, then applied to both ends.
+    fn horizontal(&mut self, s: usize, colour: usize, which: Rest, mode: Mode) {
+        let cols = self.cols;
+        let m = cols - s;
+        let mut lambda = self.take_lambda(which);
+        let mask = &self.masks[s.trailing_zeros() as usize][colour];
+        let rest = rest_of(&self.rest, &self.levels, which);
+        let (prev, w) = (&self.prev, &self.inv_mass);
+        let shared = Shared {
+            prev,
+            w,
+            rest,
+            mode,
+        };
+        let [x, y, z] = &mut self.pos;
+        let [cx, cy, cz] = &mut self.corr;
+        x.par_chunks_mut(cols)
+            .zip(y.par_chunks_mut(cols))
+            .zip(z.par_chunks_mut(cols))
+            .zip(lambda.par_chunks_mut(cols))
+            .zip(cx.par_chunks_mut(cols))
+            .zip(cy.par_chunks_mut(cols))
+            .zip(cz.par_chunks_mut(cols))
+            .enumerate()
+            .for_each(|(r, ((((((x, y), z), lam), cx), cy), cz))| {
+                crate::simd::xpbd_row(
+                    [x, y, z],
+                    [&mut cx[..m], &mut cy[..m], &mut cz[..m]],
+                    &shared,
+                    r * cols,
+                    s,
+                    &mut lam[..m],
+                    &mask[..m],
+                );
+            });
+        self.put_lambda(which, lambda);
+    }
+
+    /// Collider contacts of every particle, rows in parallel. Returns the contact count.
+    fn contacts(&mut self, colliders: &[crate::collide::Collider], h: f32) -> u32 {
+        if colliders.is_empty() {
+            return 0;
+        }
+        let cols = self.cols;
+        let (prev, w) = (&self.prev, &self.inv_mass);
+        let [x, y, z] = &mut self.pos;
+        x.par_chunks_mut(cols)
+            .zip(y.par_chunks_mut(cols))
+            .zip(z.par_chunks_mut(cols))
+            .enumerate()
+            .map(|(r, ((x, y), z))| {
+                let mut count = 0;
+                for c in 0..x.len() {
+                    let i = r * cols + c;
+                    if w[i] == 0.0 {
+                        continue;
+                    }
+                    let mut p = Vec3::new(x[c], y[c], z[c]);
+                    let p0 = Vec3::new(prev[0][i], prev[1][i], prev[2][i]);
+                    let mut touched = false;
+                    for col in colliders {
+                        if surely_clear(col, p) {
+                            continue;
+                        }
+                        if super::xpbd::contact(col, &mut p, p0, h) {
+                            touched = true;
+                            count += 1;
+                        }
+                    }
+                    if touched {
+                        x[c] = p.x;
+                        y[c] = p.y;
+                        z[c] = p.z;
+                    }
+                }
+                count
+            })
+            .sum()
+    }
+}
+
+/// A cheap test that `p` is clear of a sphere's or a plane's contact layer by more than
+/// [`CLEAR_MARGIN`] (far more than the rounding of the exact test), so the exact contact
+/// routine would do nothing; `false` (run the exact routine) for every other shape.
+#[inline(always)]
+fn surely_clear(col: &crate::collide::Collider, p: Vec3) -> bool {
+    use crate::collide::Shape;
+    match col.shape {
+        Shape::Sphere { center, radius } => {
+            let reach = radius + col.thickness + CLEAR_MARGIN;
+            (p - center).length_squared() > reach * reach
+        }
+        Shape::Plane { point, normal } => (p - point).dot(normal) > col.thickness + CLEAR_MARGIN,
+        _ => false,
+    }
+}
+
+/// See [`surely_clear`], m.
+const CLEAR_MARGIN: f32 = 1e-4;
+
+/// Whether the triangles are the builder's: two per cell, in row-major cell order.
+fn grid_triangles(topology: &Topology, rows: usize, cols: usize) -> bool {
+    let t = topology.triangles();
+    t.len() == 2 * (rows - 1) * (cols - 1)
+        && (0..rows - 1).all(|r| {
+            (0..cols - 1).all(|c| {
+                let i = (r * cols + c) as u32;
+                let n = cols as u32;
+                let k = 2 * (r * (cols - 1) + c);
+                t[k] == [i, i + n, i + 1] && t[k + 1] == [i + 1, i + n, i + n + 1]
+            })
+        })
+}
+
+/// The rest (or limit) lengths a pass reads.
+fn rest_of<'a>(rest: &'a [Vec<f32>; 6], levels: &'a [Level], which: Rest) -> &'a [f32] {
+    match which {
+        Rest::Class(c) => &rest[c],
+        Rest::Vertical(l) => &levels[l].vertical,
+        Rest::Horizontal(l) => &levels[l].horizontal,
+    }
+}
+
+/// Which lengths a pass reads.
+#[derive(Debug, Clone, Copy)]
+enum Rest {
+    Class(usize),
+    Vertical(usize),
+    Horizontal(usize),
+}
+
+/// What every row of a pass reads.
+pub(crate) struct Shared<'a> {
+    prev: &'a [Vec<f32>; 3],
+    w: &'a [f32],
+    rest: &'a [f32],
+    mode: Mode,
+}
+
+/// Rows `r` and `r + dr` of a block, as two disjoint slices.
+fn rows_pair(block: &mut [f32], r: usize, dr: usize, cols: usize) -> (&mut [f32], &mut [f32]) {
+    let (a, b) = block.split_at_mut((r + dr) * cols);
+    (&mut a[r * cols..(r + 1) * cols], &mut b[..cols])
+}
+
+fn scatter(v: &[Vec3], out: &mut [Vec<f32>; 3]) {
+    let [x, y, z] = out;
+    for (((p, x), y), z) in v
+        .iter()
+        .zip(x.iter_mut())
+        .zip(y.iter_mut())
+        .zip(z.iter_mut())
+    {
+        (*x, *y, *z) = (p.x, p.y, p.z);
+    }
+}
+
+fn gather(a: &[Vec<f32>; 3], v: &mut [Vec3]) {
+    for (((p, &x), &y), &z) in v.iter_mut().zip(&a[0]).zip(&a[1]).zip(&a[2]) {
+        *p = Vec3::new(x, y, z);
+    }
+}
+
+/// The correction `Δλ` of one pair and its gradient: `(dl, gx, gy, gz)`; `dl = 0` for a pair
+/// that does not move (both ends pinned, zero length, slack limit).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn pair_correction<const LIMIT: bool>(
+    l: [f32; 3],
+    rate_d: [f32; 3],
+    wsum: f32,
+    rest: f32,
+    lambda: f32,
+    (alpha, gamma): (f32, f32),
+) -> (f32, [f32; 3]) {
+    let len = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
+    let ok = wsum > 0.0 && len > 0.0;
+    let inv = if ok { 1.0 / len } else { 0.0 };
+    let g = [l[0] * inv, l[1] * inv, l[2] * inv];
+    let dl = if LIMIT {
+        if ok && len > rest {
+            (rest - len) / wsum
+        } else {
+            0.0
+        }
+    } else {
+        let constraint = len - rest;
+        let rate = g[0] * rate_d[0] + g[1] * rate_d[1] + g[2] * rate_d[2];
+        let dl = (-constraint - alpha * lambda - gamma * rate) / ((1.0 + gamma) * wsum + alpha);
+        if ok { dl } else { 0.0 }
+    };
+    (dl, g)
+}
+
+/// Projects the pairs `a[i]`–`b[i]` in place (a vertical pass's two rows). `g = (a0, b0,
+/// slot0)`: the particle indices of `a[0]`, `b[0]` and the first slot.
+#[inline(always)]
+pub(crate) fn pairs(
+    a: [&mut [f32]; 3],
+    b: [&mut [f32]; 3],
+    sh: &Shared<'_>,
+    g: (usize, usize, usize),
+    lambda: &mut [f32],
+) {
+    match sh.mode {
+        Mode::Compliant { alpha, gamma } => pairs_in::<false>(a, b, sh, g, lambda, (alpha, gamma)),
+        Mode::Limit => pairs_in::<true>(a, b, sh, g, lambda, (0.0, 0.0)),
+    }
+}
+
+#[inline(always)]
+fn pairs_in<const LIMIT: bool>(
+    a: [&mut [f32]; 3],
+    b: [&mut [f32]; 3],
+    sh: &Shared<'_>,
+    g: (usize, usize, usize),
+    lambda: &mut [f32],
+    params: (f32, f32),
+) {
+    let m = lambda.len();
+    let [ax, ay, az] = a;
+    let [bx, by, bz] = b;
+    let (ax, ay, az) = (&mut ax[..m], &mut ay[..m], &mut az[..m]);
+    let (bx, by, bz) = (&mut bx[..m], &mut by[..m], &mut bz[..m]);
+    let (ga, gb, gs) = g;
+    let (pax, pay, paz) = (
+        &sh.prev[0][ga..ga + m],
+        &sh.prev[1][ga..ga + m],
+        &sh.prev[2][ga..ga + m],
+    );
+    let (pbx, pby, pbz) = (
+        &sh.prev[0][gb..gb + m],
+        &sh.prev[1][gb..gb + m],
+        &sh.prev[2][gb..gb + m],
+    );
+    let (wa, wb) = (&sh.w[ga..ga + m], &sh.w[gb..gb + m]);
+    let rest = &sh.rest[gs..gs + m];
+    for i in 0..m {
+        let l = [ax[i] - bx[i], ay[i] - by[i], az[i] - bz[i]];
+        let d = [
+            (ax[i] - pax[i]) - (bx[i] - pbx[i]),
+            (ay[i] - pay[i]) - (by[i] - pby[i]),
+            (az[i] - paz[i]) - (bz[i] - pbz[i]),
+        ];
+        let (dl, g) = pair_correction::<LIMIT>(l, d, wa[i] + wb[i], rest[i], lambda[i], params);
+        lambda[i] += dl;
+        let (sa, sb) = (wa[i] * dl, wb[i] * dl);
+        ax[i] += sa * g[0];
+        ay[i] += sa * g[1];
+        az[i] += sa * g[2];
+        bx[i] -= sb * g[0];
+        by[i] -= sb * g[1];
+        bz[i] -= sb * g[2];
+    }
+}
+
+/// One row of a horizontal pass: pairs `(c, c + s)` for the `m = corr.len()` slots,
+/// `mask[c]` 1 in the colour and 0 outside; corrections into `corr`, then applied.
+#[inline(always)]
+pub(crate) fn row(
+    x: [&mut [f32]; 3],
+    corr: [&mut [f32]; 3],
+    sh: &Shared<'_>,
+    g0: usize,
+    s: usize,
+    lambda: &mut [f32],
+    mask: &[f32],
+) {
+    match sh.mode {
+        Mode::Compliant { alpha, gamma } => {
+            row_in::<false>(x, corr, sh, g0, s, lambda, mask, (alpha, gamma));
+        }
+        Mode::Limit => row_in::<true>(x, corr, sh, g0, s, lambda, mask, (0.0, 0.0)),
+    }
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn row_in<const LIMIT: bool>(
+    x: [&mut [f32]; 3],
+    corr: [&mut [f32]; 3],
+    sh: &Shared<'_>,
+    g0: usize,
+    s: usize,
+    lambda: &mut [f32],
+    mask: &[f32],
+    params: (f32, f32),
+) {
+    let m = lambda.len();
+    let [x, y, z] = x;
+    let [cx, cy, cz] = corr;
+    let (cx, cy, cz, mask) = (&mut cx[..m], &mut cy[..m], &mut cz[..m], &mask[..m]);
+    let (px, py, pz) = (
+        &sh.prev[0][g0..g0 + m + s],
+        &sh.prev[1][g0..g0 + m + s],
+        &sh.prev[2][g0..g0 + m + s],
+    );
+    let w = &sh.w[g0..g0 + m + s];
+    let rest = &sh.rest[g0..g0 + m];
+    {
+        let (xa, xb) = (&x[..m], &x[s..s + m]);
+        let (ya, yb) = (&y[..m], &y[s..s + m]);
+        let (za, zb) = (&z[..m], &z[s..s + m]);
+        let (pxa, pxb) = (&px[..m], &px[s..s + m]);
+        let (pya, pyb) = (&py[..m], &py[s..s + m]);
+        let (pza, pzb) = (&pz[..m], &pz[s..s + m]);
+        let (wa, wb) = (&w[..m], &w[s..s + m]);
+        for i in 0..m {
+            let l = [xa[i] - xb[i], ya[i] - yb[i], za[i] - zb[i]];
+            let d = [
+                (xa[i] - pxa[i]) - (xb[i] - pxb[i]),
+                (ya[i] - pya[i]) - (yb[i] - pyb[i]),
+                (za[i] - pza[i]) - (zb[i] - pzb[i]),
+            ];
+            let (dl, g) = pair_correction::<LIMIT>(l, d, wa[i] + wb[i], rest[i], lambda[i], params);
+            let dl = dl * mask[i];
+            lambda[i] += dl;
+            cx[i] = dl * g[0];
+            cy[i] = dl * g[1];
+            cz[i] = dl * g[2];
+        }
+    }
+    for (v, c) in [(&mut *x, &*cx), (&mut *y, &*cy), (&mut *z, &*cz)] {
+        let (head, wh) = (&mut v[..m], &w[..m]);
+        for i in 0..m {
+            head[i] += wh[i] * c[i];
+        }
+        let (tail, wt) = (&mut v[s..s + m], &w[s..s + m]);
+        for i in 0..m {
+            tail[i] -= wt[i] * c[i];
+        }
+    }
+}

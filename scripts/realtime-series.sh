@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# The real-time drape series of issue 7 (docs/performance.md): the drape scene with XPBD at
+# RES x RES, for each "SUBSTEPS:LEVELS" setting, SECONDS simulated on THREADS threads;
+# prints ms per 1/60 s frame (median) and the structural strain percentiles at the end.
+# Usage: scripts/realtime-series.sh RES SECONDS THREADS SUBSTEPS:LEVELS...
+set -euo pipefail
+res=$1 seconds=$2 threads=$3
+shift 3
+bin=${CLOTH:-target/release/cloth}
+out=$(mktemp -d)
+printf '%-6s %-9s %-7s %12s %9s %9s %9s %9s %12s\n' res substeps levels ms/frame p50% p99% p99.9% max% penetration
+for setting in "$@"; do
+  substeps=${setting%%:*} levels=${setting##*:}
+  "$bin" sim drape --resolution "$res" --seconds "$seconds" --threads "$threads" \
+    --set 'solver.kind="xpbd"' --set "solver.substeps=$substeps" \
+    --set "solver.xpbd={iterations=1,hierarchy_levels=$levels}" \
+    --report "$out/r.json" >/dev/null
+  python3 - "$out/r.json" "$res" "$substeps" "$levels" <<'PY'
+import json, sys
+r = json.load(open(sys.argv[1]))
+q = r["final_structural_strain"]
+pen = max(f["max_penetration"] for f in r["frames"][len(r["frames"]) // 2:])
+print(f'{sys.argv[2]:<6} {sys.argv[3]:<9} {sys.argv[4]:<7} {r["median_frame_ms"]:12.2f} '
+      f'{100*q["p50"]:9.3f} {100*q["p99"]:9.3f} {100*q["p99_9"]:9.3f} {100*q["max"]:9.3f} {pen:12.2e}')
+PY
+done
+rm -rf "$out"
