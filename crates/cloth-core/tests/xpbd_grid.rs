@@ -28,7 +28,11 @@ fn drape(n: usize, levels: u32) -> Simulation {
 
 /// Runs `steps` steps with `kernel` chosen on this thread; every position's and velocity's
 /// bits and the contact counts.
-fn trace(mut sim: Simulation, kernel: Kernel, steps: usize) -> (Vec<[u32; 3]>, Vec<[u32; 3]>, Vec<u32>) {
+fn trace(
+    mut sim: Simulation,
+    kernel: Kernel,
+    steps: usize,
+) -> (Vec<[u32; 3]>, Vec<[u32; 3]>, Vec<u32>) {
     simd::set_kernel(Some(kernel)).expect("kernel");
     let mut contacts = Vec::new();
     for _ in 0..steps {
@@ -63,7 +67,10 @@ fn grid_path_is_bit_identical_across_threads_and_kernels() {
         "the grid path must apply"
     );
     let reference = trace(base.clone(), Kernel::Portable, 40);
-    assert!(reference.2.iter().any(|&c| c > 0), "the cloth must touch the ball");
+    assert!(
+        reference.2.iter().any(|&c| c > 0),
+        "the cloth must touch the ball"
+    );
     for threads in [1, 2, 3] {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -71,7 +78,10 @@ fn grid_path_is_bit_identical_across_threads_and_kernels() {
             .expect("pool");
         for &kernel in &kernels {
             let got = pool.install(|| trace(base.clone(), kernel, 40));
-            assert!(got == reference, "{threads} threads, {kernel:?}: different bits");
+            assert!(
+                got == reference,
+                "{threads} threads, {kernel:?}: different bits"
+            );
         }
     }
 }
@@ -91,7 +101,11 @@ fn grid_prediction_matches_the_reference_bit_for_bit() {
     sim.set_config(config).expect("config");
     // Some motion first, so that every triangle sees a different relative wind.
     for i in 0..sim.particles().len() {
-        let v = Vec3::new((i % 7) as f32 * 0.02, -((i % 5) as f32) * 0.03, (i % 3) as f32 * 0.01);
+        let v = Vec3::new(
+            (i % 7) as f32 * 0.02,
+            -((i % 5) as f32) * 0.03,
+            (i % 3) as f32 * 0.01,
+        );
         sim.set_velocity(i, v).expect("velocity");
     }
     let grid = trace(sim.clone(), Kernel::Portable, 10);
@@ -191,10 +205,16 @@ fn strain_limits_bound_the_stretch_of_a_soft_curtain() {
     };
     let free = stretch(0, Kernel::Portable);
     eprintln!("no limits: column strain {:.2}%", 100.0 * free);
-    assert!(free > 0.2, "the soft curtain must stretch without limits ({free})");
+    assert!(
+        free > 0.2,
+        "the soft curtain must stretch without limits ({free})"
+    );
     for kernel in [Kernel::Portable, Kernel::Reference] {
         let limited = stretch(5, kernel);
-        eprintln!("limits to 32 rows, {kernel:?}: column strain {:.3}%", 100.0 * limited);
+        eprintln!(
+            "limits to 32 rows, {kernel:?}: column strain {:.3}%",
+            100.0 * limited
+        );
         assert!(limited <= 0.02 + 0.005, "{kernel:?}: {limited}");
     }
 }
@@ -206,7 +226,12 @@ fn strain_limits_bound_the_stretch_of_a_soft_curtain() {
 fn strain_quantiles_measure_uniform_stretch() {
     let sim = presets::drape(10, Integrator::Xpbd).expect("drape");
     let q = [0.5, 0.999, 1.0];
-    let at_rest = strain_quantiles(sim.topology(), &sim.particles().position, SpringClass::Structural, &q);
+    let at_rest = strain_quantiles(
+        sim.topology(),
+        &sim.particles().position,
+        SpringClass::Structural,
+        &q,
+    );
     assert!(at_rest.iter().all(|s| s.abs() < 1e-5), "{at_rest:?}");
     let scaled: Vec<Vec3> = sim.particles().position.iter().map(|p| *p * 1.03).collect();
     let got = strain_quantiles(sim.topology(), &scaled, SpringClass::Structural, &q);
