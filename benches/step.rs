@@ -96,5 +96,26 @@ fn drape(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, peer_ball, drape);
+/// The drape with XPBD at 256² (20 substeps, strain limits to 64 particles), warmed onto
+/// the ball: the reference path (storage-order Gauss–Seidel) on 1 thread, the grid path
+/// (coloured Gauss–Seidel over rows) on 1 and 2 threads.
+fn xpbd_drape(c: &mut Criterion) {
+    let mut sim = presets::drape(256, Integrator::Xpbd).expect("drape scene");
+    let mut config = *sim.config();
+    config.substeps = 20;
+    config.xpbd.hierarchy_levels = 6;
+    sim.set_config(config).expect("config");
+    let sim = warmed(sim, 30);
+    bench_on(
+        c,
+        "drape-256/xpbd/reference/1t",
+        &sim,
+        1,
+        Some(Kernel::Reference),
+    );
+    bench_on(c, "drape-256/xpbd/grid/1t", &sim, 1, None);
+    bench_on(c, "drape-256/xpbd/grid/2t", &sim, 2, None);
+}
+
+criterion_group!(benches, peer_ball, drape, xpbd_drape);
 criterion_main!(benches);

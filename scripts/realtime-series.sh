@@ -2,7 +2,7 @@
 # The real-time drape series of issue 7 (docs/performance.md): the drape scene with XPBD at
 # RES x RES, for each "SUBSTEPS:LEVELS" setting, SECONDS simulated on THREADS threads;
 # prints ms per 1/60 s frame (median) and the structural strain percentiles at the end.
-# Usage: scripts/realtime-series.sh RES SECONDS THREADS SUBSTEPS:LEVELS...
+# Usage: [KERNEL=reference] scripts/realtime-series.sh RES SECONDS THREADS SUBSTEPS:LEVELS...
 set -euo pipefail
 res=$1 seconds=$2 threads=$3
 shift 3
@@ -11,7 +11,7 @@ out=$(mktemp -d)
 printf '%-6s %-9s %-7s %12s %9s %9s %9s %9s %12s\n' res substeps levels ms/frame p50% p99% p99.9% max% penetration
 for setting in "$@"; do
   substeps=${setting%%:*} levels=${setting##*:}
-  "$bin" sim drape --resolution "$res" --seconds "$seconds" --threads "$threads" \
+  "$bin" sim drape --resolution "$res" --seconds "$seconds" --threads "$threads" ${KERNEL:+--kernel "$KERNEL"} \
     --set 'solver.kind="xpbd"' --set "solver.substeps=$substeps" \
     --set "solver.xpbd={iterations=1,hierarchy_levels=$levels}" \
     --report "$out/r.json" >/dev/null

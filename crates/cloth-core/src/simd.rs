@@ -19,7 +19,7 @@ use glam::Vec3;
 
 use crate::error::{ClothError, Result};
 use crate::solver::grid_kernel::{self, Band, BandResult, Job};
-use crate::solver::grid_xpbd::{self, Shared};
+use crate::solver::grid_xpbd::{self, AirCoefficients, Shared};
 
 /// Which code runs the substeps of the explicit integrators (forward Euler, symplectic
 /// Euler, position Verlet) on a grid cloth.
@@ -282,4 +282,54 @@ fn row_avx512(
     mask: &[f32],
 ) {
     grid_xpbd::row(x, corr, shared, g0, s, lambda, mask);
+}
+
+/// The air forces of one cell row of the grid XPBD path, with the chosen kernel.
+pub(crate) fn xpbd_air(
+    x: &[Vec<f32>; 3],
+    v: &[Vec<f32>; 3],
+    i0: usize,
+    cols: usize,
+    k: &AirCoefficients,
+    out: [[&mut [f32]; 3]; 2],
+) {
+    match kernel() {
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx512 if Kernel::Avx512.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { air_avx512(x, v, i0, cols, k, out) }
+        }
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 if Kernel::Avx2.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { air_avx2(x, v, i0, cols, k, out) }
+        }
+        _ => grid_xpbd::air_row(x, v, i0, cols, k, out),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn air_avx2(
+    x: &[Vec<f32>; 3],
+    v: &[Vec<f32>; 3],
+    i0: usize,
+    cols: usize,
+    k: &AirCoefficients,
+    out: [[&mut [f32]; 3]; 2],
+) {
+    grid_xpbd::air_row(x, v, i0, cols, k, out);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+fn air_avx512(
+    x: &[Vec<f32>; 3],
+    v: &[Vec<f32>; 3],
+    i0: usize,
+    cols: usize,
+    k: &AirCoefficients,
+    out: [[&mut [f32]; 3]; 2],
+) {
+    grid_xpbd::air_row(x, v, i0, cols, k, out);
 }

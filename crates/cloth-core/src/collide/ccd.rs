@@ -105,6 +105,10 @@ pub(crate) fn resolve_in(
             };
             let b = *x;
             let path = b - a;
+            // Cheaper first cut, without the square root: |path| < 0.45·τ (see below).
+            if path.length_squared() < 0.2 * tau * tau {
+                continue;
+            }
             let len = path.length();
             // A path shorter than τ can never end more than τ behind its entry point (every
             // point of it is within `len` of the end); half of τ leaves room for rounding.

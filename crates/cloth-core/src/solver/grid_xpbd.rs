@@ -90,11 +90,16 @@ pub(crate) struct XpbdGrid {
     corr: [Vec<f32>; 3],
     /// Colour masks (1.0 in the colour, 0.0 outside) by log2 of the spacing and colour.
     masks: Vec<[Vec<f32>; 2]>,
+    /// Whether the multipliers are kept (more than one sweep per substep).
+    keep: bool,
     /// Strain-limit levels and the `(levels, slack bits)` they were built for.
     levels: Vec<Level>,
     levels_key: Option<(u32, u32)>,
-    /// Air force of every triangle, divided by 3 (the share of each corner).
-    air: Vec<Vec3>,
+    /// Air force of every triangle divided by 3 (the share of each corner), by component:
+    /// `[first triangle of each cell, second]`, cell `r * (cols − 1) + c`.
+    air: [[Vec<f32>; 3]; 2],
+    /// Velocities (structure of arrays), for the air force.
+    vel: [Vec<f32>; 3],
 }
 
 /// Whether the grid path runs XPBD's sweeps for these settings: a cloth built by the grid
@@ -140,8 +145,14 @@ impl XpbdGrid {
                 a.clear();
                 a.resize(n, 0.0);
             }
-            self.air.clear();
-            self.air.resize(2 * (rows - 1) * (cols - 1), Vec3::ZERO);
+            for a in self.air.iter_mut().flatten() {
+                a.clear();
+                a.resize((rows - 1) * (cols - 1), 0.0);
+            }
+            for a in &mut self.vel {
+                a.clear();
+                a.resize(n, 0.0);
+            }
             self.masks.clear();
             let mut s = 1;
             while s < cols.max(rows) {
@@ -207,25 +218,35 @@ impl XpbdGrid {
         start.resize(p.len(), Vec3::ZERO);
         if air {
             let a = &cfg.air;
-            let (x, v, wind) = (&p.position, &p.velocity, ctx.wind);
-            self.air
-                .par_chunks_mut(2 * (cols - 1))
+            scatter(&p.position, &mut self.pos);
+            scatter(&p.velocity, &mut self.vel);
+            let coeff = AirCoefficients {
+                density: a.density,
+                drag: a.drag_coefficient,
+                lift: a.lift_coefficient,
+                wind: ctx.wind,
+            };
+            let (x, v) = (&self.pos, &self.vel);
+            let [t0, t1] = &mut self.air;
+            let [ax, ay, az] = t0;
+            let [bx, by, bz] = t1;
+            let m = cols - 1;
+            ax.par_chunks_mut(m)
+                .zip(ay.par_chunks_mut(m))
+                .zip(az.par_chunks_mut(m))
+                .zip(bx.par_chunks_mut(m))
+                .zip(by.par_chunks_mut(m))
+                .zip(bz.par_chunks_mut(m))
                 .enumerate()
-                .for_each(|(r, out)| {
-                    for (c, f) in out.chunks_exact_mut(2).enumerate() {
-                        let i = r * cols + c;
-                        let tris = [[i, i + cols, i + 1], [i + 1, i + cols, i + cols + 1]];
-                        for (f, [i, j, k]) in f.iter_mut().zip(tris) {
-                            *f = crate::forces::triangle_air_force(
-                                a.density,
-                                a.drag_coefficient,
-                                a.lift_coefficient,
-                                [x[i], x[j], x[k]],
-                                (v[i] + v[j] + v[k]) / 3.0,
-                                wind,
-                            ) / 3.0;
-                        }
-                    }
+                .for_each(|(r, (((((ax, ay), az), bx), by), bz))| {
+                    crate::simd::xpbd_air(
+                        x,
+                        v,
+                        r * cols,
+                        cols,
+                        &coeff,
+                        [[ax, ay, az], [bx, by, bz]],
+                    );
                 });
         }
         let tri = &self.air;
@@ -242,8 +263,10 @@ impl XpbdGrid {
                         // Triangles with this corner, in triangle order: cell (r−1, c−1)'s
                         // second, cell (r−1, c)'s two, cell (r, c−1)'s two, cell (r, c)'s
                         // first.
-                        let t =
-                            |rr: usize, cc: usize, k: usize| tri[2 * (rr * (cols - 1) + cc) + k];
+                        let t = |rr: usize, cc: usize, k: usize| {
+                            let j = rr * (cols - 1) + cc;
+                            Vec3::new(tri[k][0][j], tri[k][1][j], tri[k][2][j])
+                        };
                         if r > 0 {
                             if c > 0 {
                                 f += t(r - 1, c - 1, 1);
@@ -270,9 +293,10 @@ impl XpbdGrid {
             });
     }
 
-    /// Stage 2 of an XPBD substep on the grid: `iterations` sweeps (see the module docs),
-    /// from the predicted positions in `ctx.particles` and the substep's start positions
-    /// `start`; the positions are written back. Returns the contact count of the last sweep.
+    /// Stages 2 and 3 of an XPBD substep on the grid: `iterations` sweeps (see the module
+    /// docs) from the predicted positions in `ctx.particles` and the substep's start positions
+    /// `start`, then the positions written back and the velocities `(x − start)/h`. Returns the
+    /// contact count of the last sweep.
     pub(crate) fn sweeps(&mut self, ctx: &mut SubstepCtx<'_>, start: &[Vec3]) -> u32 {
         let cfg = ctx.config;
         let settings = cfg.xpbd;
@@ -288,8 +312,11 @@ impl XpbdGrid {
         scatter(&p.position, &mut self.pos);
         scatter(start, &mut self.prev);
         self.inv_mass.copy_from_slice(&p.inv_mass);
-        for l in &mut self.lambda {
-            l.fill(0.0);
+        self.keep = settings.iterations > 1;
+        if self.keep {
+            for l in &mut self.lambda {
+                l.fill(0.0);
+            }
         }
 
         // Per class: the mode, or None when its kind is off.
@@ -341,7 +368,26 @@ impl XpbdGrid {
             }
             contacts = self.contacts(ctx.colliders, h);
         }
-        gather(&self.pos, &mut ctx.particles.position);
+        // 3. positions back, velocities from positions (the reference's stage 3, in parallel).
+        let inv_h = 1.0 / h;
+        let cols = self.cols;
+        let p = &mut *ctx.particles;
+        let [x, y, z] = &self.pos;
+        p.position
+            .par_chunks_mut(cols)
+            .zip(p.velocity.par_chunks_mut(cols))
+            .zip(start.par_chunks(cols).zip(p.inv_mass.par_chunks(cols)))
+            .enumerate()
+            .for_each(|(r, ((pos, vel), (x0, w)))| {
+                let i0 = r * cols;
+                for c in 0..pos.len() {
+                    let i = i0 + c;
+                    pos[c] = Vec3::new(x[i], y[i], z[i]);
+                    if w[c] != 0.0 {
+                        vel[c] = (pos[c] - x0[c]) * inv_h;
+                    }
+                }
+            });
         contacts
     }
 
@@ -390,6 +436,7 @@ impl XpbdGrid {
             w,
             rest,
             mode,
+            keep: self.keep,
         };
         x[first..]
             .par_chunks_mut(block)
@@ -440,6 +487,7 @@ impl XpbdGrid {
             w,
             rest,
             mode,
+            keep: self.keep,
         };
         let [x, y, z] = &mut self.pos;
         let [cx, cy, cz] = &mut self.corr;
@@ -452,6 +500,30 @@ impl XpbdGrid {
             .zip(cz.par_chunks_mut(cols))
             .enumerate()
             .for_each(|(r, ((((((x, y), z), lam), cx), cy), cz))| {
+                if s >= BLOCK_SPACING {
+                    // Blocks of 2·s columns: columns [0, s) of a block against [s, 2·s),
+                    // two disjoint slices, projected in place like a vertical pass.
+                    let first = colour * s;
+                    for c0 in (first..m).step_by(2 * s) {
+                        let len = s.min(m - c0);
+                        let (xa, xb) = x.split_at_mut(c0 + s);
+                        let (ya, yb) = y.split_at_mut(c0 + s);
+                        let (za, zb) = z.split_at_mut(c0 + s);
+                        let ga = r * cols + c0;
+                        crate::simd::xpbd_pairs(
+                            [
+                                &mut xa[c0..c0 + len],
+                                &mut ya[c0..c0 + len],
+                                &mut za[c0..c0 + len],
+                            ],
+                            [&mut xb[..len], &mut yb[..len], &mut zb[..len]],
+                            &shared,
+                            (ga, ga + s, ga),
+                            &mut lam[c0..c0 + len],
+                        );
+                    }
+                    return;
+                }
                 crate::simd::xpbd_row(
                     [x, y, z],
                     [&mut cx[..m], &mut cy[..m], &mut cz[..m]],
@@ -479,27 +551,36 @@ impl XpbdGrid {
             .enumerate()
             .map(|(r, ((x, y), z))| {
                 let mut count = 0;
-                for c in 0..x.len() {
-                    let i = r * cols + c;
-                    if w[i] == 0.0 {
-                        continue;
-                    }
-                    let mut p = Vec3::new(x[c], y[c], z[c]);
-                    let p0 = Vec3::new(prev[0][i], prev[1][i], prev[2][i]);
-                    let mut touched = false;
-                    for col in colliders {
-                        if surely_clear(col, p) {
+                let mut near = [false; NEAR_CHUNK];
+                for c0 in (0..x.len()).step_by(NEAR_CHUNK) {
+                    let n = NEAR_CHUNK.min(x.len() - c0);
+                    near_any(
+                        colliders,
+                        [&x[c0..c0 + n], &y[c0..c0 + n], &z[c0..c0 + n]],
+                        &mut near[..n],
+                    );
+                    for (k, &near) in near[..n].iter().enumerate() {
+                        let (c, i) = (c0 + k, r * cols + c0 + k);
+                        if !near || w[i] == 0.0 {
                             continue;
                         }
-                        if super::xpbd::contact(col, &mut p, p0, h) {
-                            touched = true;
-                            count += 1;
+                        let mut p = Vec3::new(x[c], y[c], z[c]);
+                        let p0 = Vec3::new(prev[0][i], prev[1][i], prev[2][i]);
+                        let mut touched = false;
+                        for col in colliders {
+                            if surely_clear(col, p) {
+                                continue;
+                            }
+                            if super::xpbd::contact(col, &mut p, p0, h) {
+                                touched = true;
+                                count += 1;
+                            }
                         }
-                    }
-                    if touched {
-                        x[c] = p.x;
-                        y[c] = p.y;
-                        z[c] = p.z;
+                        if touched {
+                            x[c] = p.x;
+                            y[c] = p.y;
+                            z[c] = p.z;
+                        }
                     }
                 }
                 count
@@ -521,6 +602,44 @@ fn surely_clear(col: &crate::collide::Collider, p: Vec3) -> bool {
         }
         Shape::Plane { point, normal } => (p - point).dot(normal) > col.thickness + CLEAR_MARGIN,
         _ => false,
+    }
+}
+
+/// From this spacing on, a horizontal pass runs as blocks of two disjoint runs of `s`
+/// columns (no masked lanes, in place) instead of the masked two-phase row kernel.
+const BLOCK_SPACING: usize = 16;
+
+/// Particles per chunk of the vectorised contact pre-test.
+const NEAR_CHUNK: usize = 64;
+
+/// `near[k]`: whether particle `k` of a chunk is not [`surely_clear`] of some collider (at
+/// its current position), as plain loops over the chunk that the compiler vectorises. A
+/// particle clear of every collider is untouched by the contact pass (the first collider
+/// does not move it, so the test holds for the next), so only `near` particles need it.
+#[inline(always)]
+fn near_any(colliders: &[crate::collide::Collider], [x, y, z]: [&[f32]; 3], near: &mut [bool]) {
+    use crate::collide::Shape;
+    let n = near.len();
+    let (x, y, z) = (&x[..n], &y[..n], &z[..n]);
+    near.fill(false);
+    for col in colliders {
+        match col.shape {
+            Shape::Sphere { center, radius } => {
+                let reach = radius + col.thickness + CLEAR_MARGIN;
+                let reach_sq = reach * reach;
+                for k in 0..n {
+                    let d = Vec3::new(x[k], y[k], z[k]) - center;
+                    near[k] |= d.length_squared() <= reach_sq;
+                }
+            }
+            Shape::Plane { point, normal } => {
+                let limit = col.thickness + CLEAR_MARGIN;
+                for k in 0..n {
+                    near[k] |= (Vec3::new(x[k], y[k], z[k]) - point).dot(normal) <= limit;
+                }
+            }
+            _ => near.fill(true),
+        }
     }
 }
 
@@ -564,6 +683,9 @@ pub(crate) struct Shared<'a> {
     w: &'a [f32],
     rest: &'a [f32],
     mode: Mode,
+    /// Whether the multipliers are read and written: with one sweep per substep they are
+    /// zero whenever read (then skipping them gives the same bits: `−C − α·0 = −C`).
+    keep: bool,
 }
 
 /// Rows `r` and `r + dr` of a block, as two disjoint slices.
@@ -584,9 +706,97 @@ fn scatter(v: &[Vec3], out: &mut [Vec<f32>; 3]) {
     }
 }
 
-fn gather(a: &[Vec<f32>; 3], v: &mut [Vec3]) {
-    for (((p, &x), &y), &z) in v.iter_mut().zip(&a[0]).zip(&a[1]).zip(&a[2]) {
-        *p = Vec3::new(x, y, z);
+/// The air's parameters for [`air_row`].
+pub(crate) struct AirCoefficients {
+    density: f32,
+    drag: f32,
+    lift: f32,
+    wind: Vec3,
+}
+
+/// The air force (divided by 3) of both triangles of every cell of the cell row whose first
+/// particle is `i0`: [`crate::forces::triangle_air_force`] with the same operations in the
+/// same order (so the same bits), as a loop over shifted rows that the compiler vectorises.
+#[inline(always)]
+pub(crate) fn air_row(
+    x: &[Vec<f32>; 3],
+    v: &[Vec<f32>; 3],
+    i0: usize,
+    cols: usize,
+    k: &AirCoefficients,
+    out: [[&mut [f32]; 3]; 2],
+) {
+    let m = cols - 1;
+    fn row(a: &[Vec<f32>; 3], start: usize, m: usize) -> [&[f32]; 3] {
+        [
+            &a[0][start..start + m],
+            &a[1][start..start + m],
+            &a[2][start..start + m],
+        ]
+    }
+    // Corners: p = (r, c), q = (r, c + 1), s = (r + 1, c), t = (r + 1, c + 1).
+    let (xp, xq) = (row(x, i0, m), row(x, i0 + 1, m));
+    let (xs, xt) = (row(x, i0 + cols, m), row(x, i0 + cols + 1, m));
+    let (vp, vq) = (row(v, i0, m), row(v, i0 + 1, m));
+    let (vs, vt) = (row(v, i0 + cols, m), row(v, i0 + cols + 1, m));
+    let [[ax, ay, az], [bx, by, bz]] = out;
+    let (ax, ay, az, bx, by, bz) = (
+        &mut ax[..m],
+        &mut ay[..m],
+        &mut az[..m],
+        &mut bx[..m],
+        &mut by[..m],
+        &mut bz[..m],
+    );
+    for c in 0..m {
+        // First triangle (p, s, q), second (q, s, t), as the builder lists them.
+        let p = (xp[0][c], xp[1][c], xp[2][c]);
+        let q = (xq[0][c], xq[1][c], xq[2][c]);
+        let sx = (xs[0][c], xs[1][c], xs[2][c]);
+        let t = (xt[0][c], xt[1][c], xt[2][c]);
+        let vp = (vp[0][c], vp[1][c], vp[2][c]);
+        let vq = (vq[0][c], vq[1][c], vq[2][c]);
+        let vs = (vs[0][c], vs[1][c], vs[2][c]);
+        let vt = (vt[0][c], vt[1][c], vt[2][c]);
+        (ax[c], ay[c], az[c]) = air_force(k, p, sx, q, vp, vs, vq);
+        (bx[c], by[c], bz[c]) = air_force(k, q, sx, t, vq, vs, vt);
+    }
+}
+
+type V3 = (f32, f32, f32);
+
+/// [`crate::forces::triangle_air_force`]`(…) / 3` for corners `x0, x1, x2` with velocities
+/// `v0, v1, v2`, operation for operation (glam's `Vec3` is scalar: `dot` is
+/// `x·x' + y·y' + z·z'` left to right, `cross` as written below), in plain scalars so that the
+/// loop around it vectorises.
+#[inline(always)]
+fn air_force(k: &AirCoefficients, x0: V3, x1: V3, x2: V3, v0: V3, v1: V3, v2: V3) -> V3 {
+    let (e1x, e1y, e1z) = (x1.0 - x0.0, x1.1 - x0.1, x1.2 - x0.2);
+    let (e2x, e2y, e2z) = (x2.0 - x0.0, x2.1 - x0.1, x2.2 - x0.2);
+    let cx = e1y * e2z - e2y * e1z;
+    let cy = e1z * e2x - e2z * e1x;
+    let cz = e1x * e2y - e2x * e1y;
+    let cross_len = (cx * cx + cy * cy + cz * cz).sqrt();
+    let tx = (v0.0 + v1.0 + v2.0) / 3.0;
+    let ty = (v0.1 + v1.1 + v2.1) / 3.0;
+    let tz = (v0.2 + v1.2 + v2.2) / 3.0;
+    let (rx, ry, rz) = (k.wind.x - tx, k.wind.y - ty, k.wind.z - tz);
+    let speed_sq = rx * rx + ry * ry + rz * rz;
+    let live = cross_len > 0.0 && speed_sq > 0.0;
+    let area = 0.5 * cross_len;
+    let (nx, ny, nz) = (cx / cross_len, cy / cross_len, cz / cross_len);
+    let speed = speed_sq.sqrt();
+    let (hx, hy, hz) = (rx / speed, ry / speed, rz / speed);
+    let cos = nx * hx + ny * hy + nz * hz;
+    let q = 0.5 * k.density * speed_sq * area;
+    let qc = q * cos;
+    let fx = qc * (k.drag * nx + k.lift * (nx - cos * hx));
+    let fy = qc * (k.drag * ny + k.lift * (ny - cos * hy));
+    let fz = qc * (k.drag * nz + k.lift * (nz - cos * hz));
+    if live {
+        (fx / 3.0, fy / 3.0, fz / 3.0)
+    } else {
+        (0.0, 0.0, 0.0)
     }
 }
 
@@ -632,13 +842,18 @@ pub(crate) fn pairs(
     lambda: &mut [f32],
 ) {
     match sh.mode {
-        Mode::Compliant { alpha, gamma } => pairs_in::<false>(a, b, sh, g, lambda, (alpha, gamma)),
-        Mode::Limit => pairs_in::<true>(a, b, sh, g, lambda, (0.0, 0.0)),
+        Mode::Compliant { alpha, gamma } if sh.keep => {
+            pairs_in::<false, true>(a, b, sh, g, lambda, (alpha, gamma));
+        }
+        Mode::Compliant { alpha, gamma } => {
+            pairs_in::<false, false>(a, b, sh, g, lambda, (alpha, gamma));
+        }
+        Mode::Limit => pairs_in::<true, false>(a, b, sh, g, lambda, (0.0, 0.0)),
     }
 }
 
 #[inline(always)]
-fn pairs_in<const LIMIT: bool>(
+fn pairs_in<const LIMIT: bool, const KEEP: bool>(
     a: [&mut [f32]; 3],
     b: [&mut [f32]; 3],
     sh: &Shared<'_>,
@@ -671,8 +886,11 @@ fn pairs_in<const LIMIT: bool>(
             (ay[i] - pay[i]) - (by[i] - pby[i]),
             (az[i] - paz[i]) - (bz[i] - pbz[i]),
         ];
-        let (dl, g) = pair_correction::<LIMIT>(l, d, wa[i] + wb[i], rest[i], lambda[i], params);
-        lambda[i] += dl;
+        let lam = if KEEP { lambda[i] } else { 0.0 };
+        let (dl, g) = pair_correction::<LIMIT>(l, d, wa[i] + wb[i], rest[i], lam, params);
+        if KEEP {
+            lambda[i] += dl;
+        }
         let (sa, sb) = (wa[i] * dl, wb[i] * dl);
         ax[i] += sa * g[0];
         ay[i] += sa * g[1];
@@ -696,16 +914,19 @@ pub(crate) fn row(
     mask: &[f32],
 ) {
     match sh.mode {
-        Mode::Compliant { alpha, gamma } => {
-            row_in::<false>(x, corr, sh, g0, s, lambda, mask, (alpha, gamma));
+        Mode::Compliant { alpha, gamma } if sh.keep => {
+            row_in::<false, true>(x, corr, sh, g0, s, lambda, mask, (alpha, gamma));
         }
-        Mode::Limit => row_in::<true>(x, corr, sh, g0, s, lambda, mask, (0.0, 0.0)),
+        Mode::Compliant { alpha, gamma } => {
+            row_in::<false, false>(x, corr, sh, g0, s, lambda, mask, (alpha, gamma));
+        }
+        Mode::Limit => row_in::<true, false>(x, corr, sh, g0, s, lambda, mask, (0.0, 0.0)),
     }
 }
 
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn row_in<const LIMIT: bool>(
+fn row_in<const LIMIT: bool, const KEEP: bool>(
     x: [&mut [f32]; 3],
     corr: [&mut [f32]; 3],
     sh: &Shared<'_>,
@@ -741,9 +962,12 @@ fn row_in<const LIMIT: bool>(
                 (ya[i] - pya[i]) - (yb[i] - pyb[i]),
                 (za[i] - pza[i]) - (zb[i] - pzb[i]),
             ];
-            let (dl, g) = pair_correction::<LIMIT>(l, d, wa[i] + wb[i], rest[i], lambda[i], params);
+            let lam = if KEEP { lambda[i] } else { 0.0 };
+            let (dl, g) = pair_correction::<LIMIT>(l, d, wa[i] + wb[i], rest[i], lam, params);
             let dl = dl * mask[i];
-            lambda[i] += dl;
+            if KEEP {
+                lambda[i] += dl;
+            }
             cx[i] = dl * g[0];
             cy[i] = dl * g[1];
             cz[i] = dl * g[2];

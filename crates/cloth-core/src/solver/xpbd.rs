@@ -179,10 +179,11 @@ pub(super) fn substep(
 
     // 2. constraint sweeps: on the grid path when it applies.
     if grid {
+        // Stages 2 and 3.
         ctx.contacts.contacts = sc.grid.sweeps(ctx, &sc.prev);
-    } else {
-        reference_sweeps(ctx, sc, hash);
+        return;
     }
+    reference_sweeps(ctx, sc, hash);
 
     // 3. velocities from positions.
     let inv_h = 1.0 / h;
