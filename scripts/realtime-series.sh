@@ -2,17 +2,21 @@
 # The real-time drape series of issue 7 (docs/performance.md): the drape scene with XPBD at
 # RES x RES, for each "SUBSTEPS:LEVELS" setting, SECONDS simulated on THREADS threads;
 # prints ms per 1/60 s frame (median) and the structural strain percentiles at the end.
+# The scene's global damping (F = -d·v per particle, d = 2e-4 kg/s at its native 48²) is
+# scaled by (48/RES)² so that the cloth's total damping, and so its fall, is the same at every
+# resolution (unscaled, 512² would fall at its terminal speed of 5 cm/s and never drape).
 # Usage: [KERNEL=reference] scripts/realtime-series.sh RES SECONDS THREADS SUBSTEPS:LEVELS...
 set -euo pipefail
 res=$1 seconds=$2 threads=$3
 shift 3
 bin=${CLOTH:-target/release/cloth}
 out=$(mktemp -d)
+damping=$(python3 -c "print(repr(2e-4 * (48 / $res) ** 2))")
 printf '%-6s %-9s %-7s %12s %9s %9s %9s %9s %12s\n' res substeps levels ms/frame p50% p99% p99.9% max% penetration
 for setting in "$@"; do
   substeps=${setting%%:*} levels=${setting##*:}
   "$bin" sim drape --resolution "$res" --seconds "$seconds" --threads "$threads" ${KERNEL:+--kernel "$KERNEL"} \
-    --set 'solver.kind="xpbd"' --set "solver.substeps=$substeps" \
+    --set 'solver.kind="xpbd"' --set "solver.substeps=$substeps" --set "forces.damping=$damping" \
     --set "solver.xpbd={iterations=1,hierarchy_levels=$levels}" \
     --report "$out/r.json" >/dev/null
   python3 - "$out/r.json" "$res" "$substeps" "$levels" <<'PY'

@@ -64,11 +64,13 @@ pub struct SimArgs {
     pub report: Option<PathBuf>,
     /// Worker threads, 1 ..= 256. Results are bit-identical for every count: the explicit
     /// integrators' grid fast path cuts the rows into one band per thread and sums every
-    /// force in a fixed order (recorded in the report, with the kernel that ran).
+    /// force in a fixed order; XPBD's grid path projects colours of disjoint springs (recorded
+    /// in the report, with the kernel that ran).
     #[arg(long, value_name = "N", default_value = "1", value_parser = parse_threads)]
     pub threads: usize,
-    /// The explicit integrators' kernel: reference, portable, avx2 or avx512 (default: the
-    /// widest this CPU runs). All give the same bits; for measuring them against each other.
+    /// The grid paths' kernel: reference, portable, avx2 or avx512 (default: the widest this
+    /// CPU runs). For the explicit integrators all give the same bits; for XPBD the grid
+    /// kernels give the same bits and `reference` runs XPBD's storage-order sweeps.
     #[arg(long, value_name = "NAME", value_parser = parse_kernel)]
     pub kernel: Option<cloth_core::simd::Kernel>,
     #[arg(
