@@ -25,21 +25,7 @@ fi
 [[ -n $peer ]] || { echo "no peer run.sh found; set PEER=" >&2; exit 2; }
 
 # The peer scene at n as --set overrides (python3 for the f32-exact decimal forms).
-mapfile -t sets < <(python3 - "$n" <<'EOF'
-import sys, math
-n = int(sys.argv[1]); q = 1.0 / n
-c0 = -0.5 + 0.5 * (n - 1) * q
-h = 0.04 / n; sub = int((1.0 / 60.0) / h)
-y = 3.0e4; c = 1.0e4 * q
-print(f"cloth.resolution=[{n},{n}]")
-print(f"cloth.spacing=[{q!r},{q!r}]")
-print(f"cloth.origin=[{c0 + 0.037153453!r},0.6,{c0 + 0.027561575!r}]")
-for kind, k in (("warp", y / q), ("weft", y / q), ("shear", y / (math.sqrt(2) * q)), ("bend", y / (2 * q))):
-    print(f"material.{kind}={{ stiffness = {k!r}, damping = {c!r} }}")
-print(f"solver.dt={h * sub!r}")
-print(f"solver.substeps={sub}")
-EOF
-)
+mapfile -t sets < <(python3 "$(dirname "$0")/peer-params.py" "$n")
 args=()
 for s in "${sets[@]}"; do args+=(--set "$s"); done
 

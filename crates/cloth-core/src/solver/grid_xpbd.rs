@@ -321,25 +321,8 @@ impl XpbdGrid {
 
         // Per class: the mode, or None when its kind is off.
         let modes: [Option<Mode>; 6] = std::array::from_fn(|class| {
-            let kind = CLASSES[class].3;
-            let params = cfg.material.params(kind);
-            let k = if cfg.forces.springs {
-                params.stiffness
-            } else {
-                0.0
-            };
-            if k == 0.0 {
-                return None;
-            }
-            let c = if cfg.forces.dashpots {
-                params.damping
-            } else {
-                0.0
-            };
-            Some(Mode::Compliant {
-                alpha: 1.0 / (k * h * h),
-                gamma: c / (k * h),
-            })
+            super::xpbd::compliance(cfg, CLASSES[class].3, h)
+                .map(|(alpha, gamma)| Mode::Compliant { alpha, gamma })
         });
 
         let mut contacts = 0;

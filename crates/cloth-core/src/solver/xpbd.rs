@@ -239,23 +239,9 @@ fn solve_springs(ctx: &mut SubstepCtx<'_>, sc: &mut XpbdScratch, h: f32) {
         let springs = ctx.topology.springs_of(kind);
         let lambda = &mut sc.lambda[offset..offset + springs.len()];
         offset += springs.len();
-        let params = cfg.material.params(kind);
-        let k = if cfg.forces.springs {
-            params.stiffness
-        } else {
-            0.0
-        };
-        if k == 0.0 {
+        let Some((alpha, gamma)) = compliance(cfg, kind, h) else {
             continue;
-        }
-        let c = if cfg.forces.dashpots {
-            params.damping
-        } else {
-            0.0
         };
-        // α̃ = α/h² with α = 1/k; γ = α̃·β̃/h with β̃ = h²·β, β = c.
-        let alpha = 1.0 / (k * h * h);
-        let gamma = c / (k * h);
         for (s, lambda) in springs.iter().zip(lambda.iter_mut()) {
             let (a, b) = (s.a as usize, s.b as usize);
             let (wa, wb) = (p.inv_mass[a], p.inv_mass[b]);
@@ -294,6 +280,31 @@ fn solve_limits(p: &mut crate::particles::Particles, limits: &[Tether]) {
             p.position[b] -= (wb * dl) * grad;
         }
     }
+}
+
+/// XPBD's constants of a spring kind at substep `h`: `(α̃, γ)` with α̃ = α/h², α = 1/k, and
+/// γ = α̃·β̃/h with β̃ = h²·β, β = c (the dashpot). `None` when the kind has no stiffness (or
+/// the springs are switched off). Shared by the reference and grid paths.
+pub(super) fn compliance(
+    cfg: &crate::config::SimConfig,
+    kind: SpringKind,
+    h: f32,
+) -> Option<(f32, f32)> {
+    let params = cfg.material.params(kind);
+    let k = if cfg.forces.springs {
+        params.stiffness
+    } else {
+        0.0
+    };
+    if k == 0.0 {
+        return None;
+    }
+    let c = if cfg.forces.dashpots {
+        params.damping
+    } else {
+        0.0
+    };
+    Some((1.0 / (k * h * h), c / (k * h)))
 }
 
 fn solve_tethers(p: &mut crate::particles::Particles, tethers: &[Tether]) {
