@@ -18,6 +18,7 @@ struct Trace {
     position: Vec<[u32; 3]>,
     velocity: Vec<[u32; 3]>,
     contacts: Vec<u32>,
+    ccd: Vec<u32>,
 }
 
 fn bits(v: &[Vec3]) -> Vec<[u32; 3]> {
@@ -35,6 +36,7 @@ fn run(mut sim: Simulation, kernel: Kernel, steps: usize) -> Trace {
     };
     assert_eq!(simd::kernel_for(&sim), expected, "the fast path must apply");
     let mut contacts = Vec::new();
+    let mut ccd = Vec::new();
     let pin0 = sim.particles().inv_mass[0] == 0.0;
     let start = sim.particles().position[0];
     for k in 0..steps {
@@ -45,12 +47,14 @@ fn run(mut sim: Simulation, kernel: Kernel, steps: usize) -> Trace {
         }
         let stats = sim.step().expect("stable");
         contacts.push(stats.contacts);
+        ccd.push(stats.ccd_corrections);
     }
     simd::set_kernel(None).expect("default");
     Trace {
         position: bits(&sim.particles().position),
         velocity: bits(&sim.particles().velocity),
         contacts,
+        ccd,
     }
 }
 
@@ -112,6 +116,44 @@ fn scenes() -> Vec<(String, Simulation)> {
             .add_collider(Collider::sphere(Vec3::new(0.1, 1.0, 0.15), 0.2))
             .expect("sphere");
         out.push((format!("hanging-11/{}", integrator.name()), hanging));
+
+        // Thrown at 150 m/s through small moving balls (paths of 2.5 mm or more per substep, longer
+        // than a ball is wide, so continuous collision corrects particles) and onto a tilted
+        // rising ground: the arrays' contact pass and candidate mask for spheres and planes,
+        // with friction and thickness, against the reference.
+        let mut thrown = presets::peer_ball(16).expect("peer");
+        let mut config = *thrown.config();
+        config.integrator = integrator;
+        config.substeps = 16;
+        config.dt = 0.004;
+        thrown.set_config(config).expect("config");
+        thrown
+            .set_collider(
+                0,
+                Collider::plane(Vec3::new(0.0, 0.45, 0.0), Vec3::new(0.1, 1.0, 0.0))
+                    .with_velocity(Vec3::new(0.0, 0.2, 0.0))
+                    .with_thickness(0.002)
+                    .with_friction(Friction::new(0.6, 0.5)),
+            )
+            .expect("ground");
+        for k in 0..6 {
+            // Just off a particle's line of fall.
+            let p = thrown.particles().position[16 * (3 + 2 * k) + 2 + 2 * k];
+            let at = Vec3::new(p.x + 0.0002, 0.52 - 0.0007 * k as f32, p.z - 0.0001);
+            thrown
+                .add_collider(
+                    Collider::sphere(at, 0.001)
+                        .with_velocity(Vec3::new(0.0, 0.5, 0.0))
+                        .with_thickness(0.0002)
+                        .with_friction(Friction::new(0.4, 0.3)),
+                )
+                .expect("ball");
+        }
+        for i in 0..thrown.particles().len() {
+            let v = Vec3::new(0.0, -150.0, 1e-3 * (i % 7) as f32);
+            thrown.set_velocity(i, v).expect("velocity");
+        }
+        out.push((format!("thrown-16/{}", integrator.name()), thrown));
     }
     // Forward Euler gains energy every substep: small substeps keep it stable for the test.
     for (_, sim) in &mut out {
@@ -136,6 +178,11 @@ fn every_kernel_gives_the_reference_bits() {
         assert!(
             reference.contacts.iter().any(|&c| c > 0) || name.starts_with("hanging"),
             "{name}: the scene should touch a collider"
+        );
+        assert!(
+            reference.ccd.iter().any(|&c| c > 0) || !name.starts_with("thrown"),
+            "{name}: continuous collision should correct particles: {:?}",
+            reference.ccd
         );
         for &k in &kernels {
             let fast = run(sim.clone(), k, 12);

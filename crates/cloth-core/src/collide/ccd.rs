@@ -38,7 +38,7 @@ use super::Collider;
 use crate::particles::Particles;
 
 /// Surface tolerance of the advancement, m.
-const HIT_EPSILON: f32 = 1e-5;
+pub(crate) const HIT_EPSILON: f32 = 1e-5;
 /// Most advancement steps along one path; a path that grazes the surface for longer is
 /// treated as touching at the last point reached (which is still outside).
 const MAX_MARCH: usize = 64;

@@ -325,6 +325,9 @@ pub(crate) struct Job<'a> {
     plus_zero: &'a [f32],
     minus_zero: &'a [f32],
     colliders: &'a [Collider],
+    /// Every collider is a sphere or a plane that does not turn: the discrete contact pass
+    /// runs vectorised on the structure-of-arrays row ([`contacts_soa`]).
+    soa_contacts: bool,
     ccd: bool,
     /// Continuous collision cannot change a particle whose path over the substep is shorter
     /// than every collider's [`ccd::tolerance`] (halved, for rounding): this is that length
@@ -398,6 +401,13 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         plus_zero: &scratch.plus_zero,
         minus_zero: &scratch.minus_zero,
         colliders: ctx.colliders,
+        soa_contacts: ctx.colliders.iter().all(|c| {
+            c.angular_velocity == Vec3::ZERO
+                && matches!(
+                    c.shape,
+                    crate::collide::Shape::Sphere { .. } | crate::collide::Shape::Plane { .. }
+                )
+        }),
         ccd: plan.ccd,
         ccd_min_path: if ctx
             .colliders
@@ -536,6 +546,16 @@ pub(crate) fn band(
         }
         if s >= r0 {
             particle_row(job, s, band);
+            // With the discrete contacts done on the arrays, the rows that also run continuous
+            // collision get their candidates there too (old positions = the ring's row, which
+            // Verlet's drift has changed: it keeps the per-particle mask).
+            let premasked = job.soa_contacts && job.ccd && job.scheme != Scheme::Verlet;
+            if job.soa_contacts {
+                result.contacts += contacts_soa(job, s, &mut band.out);
+            }
+            if premasked {
+                ccd_mask_soa(job, s, &band.state[s % 3], &band.out, &mut band.near);
+            }
             let lo = (s - r0) * cols;
             let px = &mut out_x[lo..lo + cols];
             let pv = &mut out_v[lo..lo + cols];
@@ -544,7 +564,7 @@ pub(crate) fn band(
                 *p = Vec3::new(x[c], y[c], z[c]);
                 *v = Vec3::new(vx[c], vy[c], vz[c]);
             }
-            contacts_row(job, s, px, pv, &mut band.near, &mut result);
+            contacts_row(job, s, px, pv, &mut band.near, premasked, &mut result);
         }
         // Row s + 3 replaces row s in the ring (needed by the springs of row s + 1).
         if s + 3 < rows && s + 1 < r1 {
@@ -567,9 +587,37 @@ fn contacts_row(
     px: &mut [Vec3],
     pv: &mut [Vec3],
     near: &mut [bool],
+    premasked: bool,
     result: &mut BandResult,
 ) {
-    if job.colliders.is_empty() {
+    if job.colliders.is_empty() || (job.soa_contacts && !job.ccd) {
+        return;
+    }
+    if premasked {
+        // `near` already holds the continuous-collision candidates ([`ccd_mask_soa`]).
+        let range = s * job.cols..(s + 1) * job.cols;
+        let (w, a) = (&job.inv_mass[range.clone()], &job.position[range]);
+        let mut i = 0;
+        let n = px.len();
+        while i < n {
+            if !near[i] {
+                i += 1;
+                continue;
+            }
+            let mut j = i + 1;
+            while j < n && near[j] {
+                j += 1;
+            }
+            result.ccd += ccd::resolve_in(
+                job.colliders,
+                &a[i..j],
+                &mut px[i..j],
+                &mut pv[i..j],
+                &w[i..j],
+                job.h,
+            );
+            i = j;
+        }
         return;
     }
     let range = s * job.cols..(s + 1) * job.cols;
@@ -593,7 +641,9 @@ fn contacts_row(
             j += 1;
         }
         let (x, v, w, a) = (&mut px[i..j], &mut pv[i..j], &w[i..j], &start[i..j]);
-        result.contacts += resolve_contacts_in(job.colliders, x, v, w, pos_weight);
+        if !job.soa_contacts {
+            result.contacts += resolve_contacts_in(job.colliders, x, v, w, pos_weight);
+        }
         if job.ccd {
             // Continuous collision only on the particles whose path is long enough for it to
             // change anything (see `Job::ccd_min_path`); each particle is on its own.
@@ -624,6 +674,149 @@ fn contacts_row(
     }
 }
 
+/// The discrete contact pass ([`crate::collide::resolve_contacts`]) on row `s`'s new state in
+/// structure of arrays (x, y, z, vx, vy, vz), for spheres and planes that do not turn: the
+/// same operations in the same order as the reference's per-particle code (`Shape::distance`,
+/// `respond`, `coulomb`), computed in every lane and selected, so the bits are the
+/// reference's. Returns the number of contacts.
+#[inline(always)]
+fn contacts_soa(job: &Job<'_>, s: usize, out: &mut [Vec<f32>; 6]) -> u32 {
+    use crate::collide::Shape;
+    let cols = job.cols;
+    let w = &job.inv_mass[s * cols..][..cols];
+    let pw = match job.scheme {
+        Scheme::Forward => 0.0,
+        Scheme::Symplectic => job.h,
+        Scheme::Verlet => 0.5 * job.h,
+    };
+    let [x, y, z, vx, vy, vz] = out;
+    let (x, y, z) = (&mut x[..cols], &mut y[..cols], &mut z[..cols]);
+    let (vx, vy, vz) = (&mut vx[..cols], &mut vy[..cols], &mut vz[..cols]);
+    let mut contacts = 0;
+    for col in job.colliders {
+        let (mu_s, mu_k, t) = (
+            col.friction.static_coefficient,
+            col.friction.kinetic_coefficient,
+            col.thickness,
+        );
+        let vc = col.velocity;
+        let (sphere, a, r, norm) = match col.shape {
+            Shape::Sphere { center, radius } => (true, center, radius, Vec3::Y),
+            Shape::Plane { point, normal } => (false, point, 0.0, normal),
+            _ => unreachable!("soa_contacts holds only spheres and planes"),
+        };
+        // One particle (a macro, so that it inlines into the vector loop): the distance and
+        // normal of `$shape`, then the contact response, every branch computed and selected.
+        macro_rules! one {
+            ($sphere:expr, $a:expr, $r:expr, $p:expr, $v:expr, $w:expr) => {{
+                let (sphere, a, r): (bool, Vec3, f32) = ($sphere, $a, $r);
+                let ([px, py, pz], [qx, qy, qz], w): ([f32; 3], [f32; 3], f32) = ($p, $v, $w);
+                let (dist, nx, ny, nz) = if sphere {
+                    // Shape::distance of a sphere: d = p − c, n = d / |d| (Y at the centre).
+                    let (dx, dy, dz) = (px - a.x, py - a.y, pz - a.z);
+                    let len = (dx * dx + dy * dy + dz * dz).sqrt();
+                    let pos = len > 0.0;
+                    (
+                        len - r,
+                        if pos { dx / len } else { 0.0 },
+                        if pos { dy / len } else { 1.0 },
+                        if pos { dz / len } else { 0.0 },
+                    )
+                } else {
+                    // A plane: `a` is its point, `n` its normal (passed in `norm`).
+                    let n = norm;
+                    (
+                        (px - a.x) * n.x + (py - a.y) * n.y + (pz - a.z) * n.z,
+                        n.x,
+                        n.y,
+                        n.z,
+                    )
+                };
+                let phi = dist - t;
+                let hit = w != 0.0 && !(phi >= 0.0);
+                // x ← x − φ·n
+                let (hx, hy, hz) = (px - phi * nx, py - phi * ny, pz - phi * nz);
+                // respond: relative velocity, its normal part, Coulomb friction.
+                let (rx, ry, rz) = (qx - vc.x, qy - vc.y, qz - vc.z);
+                let vn = rx * nx + ry * ny + rz * nz;
+                let approach = !(vn >= 0.0);
+                let dvn = -vn;
+                let (tx, ty, tz) = (rx - vn * nx, ry - vn * ny, rz - vn * nz);
+                let vt_len = (tx * tx + ty * ty + tz * tz).sqrt();
+                let stick = vt_len <= mu_s * dvn;
+                let scale = (1.0 - mu_k * dvn / vt_len).max(0.0);
+                let (ux, uy, uz) = if stick {
+                    (0.0, 0.0, 0.0)
+                } else {
+                    (tx * scale, ty * scale, tz * scale)
+                };
+                let (ex, ey, ez) = if approach {
+                    (
+                        hx + pw * (ux - tx),
+                        hy + pw * (uy - ty),
+                        hz + pw * (uz - tz),
+                    )
+                } else {
+                    (hx, hy, hz)
+                };
+                let (fx, fy, fz) = if approach {
+                    (vc.x + ux, vc.y + uy, vc.z + uz)
+                } else {
+                    (qx, qy, qz)
+                };
+                if hit {
+                    ([ex, ey, ez], [fx, fy, fz], 1_u32)
+                } else {
+                    ([px, py, pz], [qx, qy, qz], 0_u32)
+                }
+            }};
+        }
+        let mut c0 = 0;
+        while c0 + LANES <= cols {
+            let (lx, ly, lz) = (lanes(x, c0), lanes(y, c0), lanes(z, c0));
+            let (lvx, lvy, lvz) = (lanes(vx, c0), lanes(vy, c0), lanes(vz, c0));
+            let lw = lanes(w, c0);
+            let mut o = [[0.0_f32; LANES]; 6];
+            let mut hits = [0_u32; LANES];
+            for j in 0..LANES {
+                let (p, v, h) = one!(
+                    sphere,
+                    a,
+                    r,
+                    [lx[j], ly[j], lz[j]],
+                    [lvx[j], lvy[j], lvz[j]],
+                    lw[j]
+                );
+                [o[0][j], o[1][j], o[2][j]] = p;
+                [o[3][j], o[4][j], o[5][j]] = v;
+                hits[j] = h;
+            }
+            for (dst, src) in [&mut *x, &mut *y, &mut *z, &mut *vx, &mut *vy, &mut *vz]
+                .into_iter()
+                .zip(&o)
+            {
+                dst[c0..c0 + LANES].copy_from_slice(src);
+            }
+            contacts += hits.iter().sum::<u32>();
+            c0 += LANES;
+        }
+        for c in c0..cols {
+            let (p, v, h) = one!(
+                sphere,
+                a,
+                r,
+                [x[c], y[c], z[c]],
+                [vx[c], vy[c], vz[c]],
+                w[c]
+            );
+            [x[c], y[c], z[c]] = p;
+            [vx[c], vy[c], vz[c]] = v;
+            contacts += h;
+        }
+    }
+    contacts
+}
+
 /// Marks the particles of a row that the contact passes could touch. A particle is ruled out
 /// only against still spheres and planes (exact distances), when its new position is more
 /// than the thickness and half its path from every collider, and (with continuous
@@ -649,6 +842,72 @@ fn near_mask(job: &Job<'_>, start: &[Vec3], px: &[Vec3], near: &mut [bool]) {
                 mark(start, px, near, t, job.ccd, |p| (p - point).dot(normal));
             }
             _ => near.fill(true),
+        }
+    }
+}
+
+/// The continuous-collision candidates of a row, on the arrays (old positions `a`, new
+/// positions after the discrete contacts `b`): `near` is cleared for exactly the particles
+/// that [`ccd::resolve_in`] would leave alone at every collider without marching, by its own
+/// tests with its own operations (pinned; path under ½τ; `φ(b) ≥ |b − a|`; `φ(a) < 0` or
+/// `φ(a) + φ(b) ≥ |b − a|`; touching at the start with `(b − a)·n ≥ −τ`). The colliders are
+/// spheres and planes that do not turn ([`Job::soa_contacts`]).
+#[inline(always)]
+fn ccd_mask_soa(job: &Job<'_>, s: usize, a: &[Vec<f32>; 6], b: &[Vec<f32>; 6], near: &mut [bool]) {
+    use crate::collide::Shape;
+    let cols = job.cols;
+    let w = &job.inv_mass[s * cols..][..cols];
+    let (ax, ay, az) = (&a[0][..cols], &a[1][..cols], &a[2][..cols]);
+    let (bx, by, bz) = (&b[0][..cols], &b[1][..cols], &b[2][..cols]);
+    let near = &mut near[..cols];
+    near.fill(false);
+    for col in job.colliders {
+        let (sphere, p, r, n) = match col.shape {
+            Shape::Sphere { center, radius } => (true, center, radius, Vec3::Y),
+            Shape::Plane { point, normal } => (false, point, 0.0, normal),
+            _ => unreachable!("soa_contacts holds only spheres and planes"),
+        };
+        let tau = ccd::tolerance(col);
+        // `resolve_in`'s start point in the collider's end pose (no turn): a + (p₁ − p₀).
+        let pivot_end = col.shape.pivot();
+        let shift = pivot_end - (pivot_end - col.velocity * job.h);
+        // Signed distance and normal (`Shape::distance`).
+        let dist = |x: f32, y: f32, z: f32| -> (f32, [f32; 3]) {
+            if sphere {
+                let (dx, dy, dz) = (x - p.x, y - p.y, z - p.z);
+                let len = (dx * dx + dy * dy + dz * dz).sqrt();
+                let pos = len > 0.0;
+                (
+                    len - r,
+                    [
+                        if pos { dx / len } else { 0.0 },
+                        if pos { dy / len } else { 1.0 },
+                        if pos { dz / len } else { 0.0 },
+                    ],
+                )
+            } else {
+                (
+                    (x - p.x) * n.x + (y - p.y) * n.y + (z - p.z) * n.z,
+                    n.to_array(),
+                )
+            }
+        };
+        for c in 0..cols {
+            let (sx, sy, sz) = (ax[c] + shift.x, ay[c] + shift.y, az[c] + shift.z);
+            let (px, py, pz) = (bx[c] - sx, by[c] - sy, bz[c] - sz);
+            let l2 = px * px + py * py + pz * pz;
+            let len = l2.sqrt();
+            let (db, _) = dist(bx[c], by[c], bz[c]);
+            let (da, [nx, ny, nz]) = dist(sx, sy, sz);
+            let skip = w[c] == 0.0
+                || l2 < 0.2 * tau * tau
+                || len.is_nan()
+                || len < 0.5 * tau
+                || db >= len
+                || da < 0.0
+                || da + db >= len
+                || (da <= ccd::HIT_EPSILON && px * nx + py * ny + pz * nz >= -tau);
+            near[c] |= !skip;
         }
     }
 }
