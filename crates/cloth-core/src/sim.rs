@@ -549,6 +549,8 @@ impl Simulation {
             );
         }
 
+        self.solver.end_step(&mut self.particles);
+
         // 4. pins (the targets are cleared only once the step is accepted, so that a failed
         //    step leaves them set, like the rest of the state)
         for (i, target) in self.pin_target.iter().enumerate() {

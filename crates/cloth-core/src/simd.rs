@@ -15,10 +15,8 @@
 
 use std::cell::Cell;
 
-use glam::Vec3;
-
 use crate::error::{ClothError, Result};
-use crate::solver::grid_kernel::{self, Band, BandResult, Job};
+use crate::solver::grid_kernel::{self, Band, BandResult, Dest, Job};
 use crate::solver::grid_xpbd::{self, AirCoefficients, Shared};
 
 /// Which code runs the substeps of the explicit integrators (forward Euler, symplectic
@@ -137,50 +135,35 @@ pub(crate) fn run_band(
     r0: usize,
     r1: usize,
     band: &mut Band,
-    out_x: &mut [Vec3],
-    out_v: &mut [Vec3],
+    dest: Dest<'_>,
 ) -> BandResult {
     match kernel {
         #[cfg(target_arch = "x86_64")]
         Kernel::Avx512 if Kernel::Avx512.is_available() => {
             // SAFETY: the CPU has every feature `band_avx512` is compiled with (checked on
             // the line above).
-            unsafe { band_avx512(job, r0, r1, band, out_x, out_v) }
+            unsafe { band_avx512(job, r0, r1, band, dest) }
         }
         #[cfg(target_arch = "x86_64")]
         Kernel::Avx2 if Kernel::Avx2.is_available() => {
             // SAFETY: the CPU has every feature `band_avx2` is compiled with (checked on the
             // line above).
-            unsafe { band_avx2(job, r0, r1, band, out_x, out_v) }
+            unsafe { band_avx2(job, r0, r1, band, dest) }
         }
-        _ => grid_kernel::band(job, r0, r1, band, out_x, out_v),
+        _ => grid_kernel::band(job, r0, r1, band, dest),
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn band_avx2(
-    job: &Job<'_>,
-    r0: usize,
-    r1: usize,
-    band: &mut Band,
-    out_x: &mut [Vec3],
-    out_v: &mut [Vec3],
-) -> BandResult {
-    grid_kernel::band(job, r0, r1, band, out_x, out_v)
+fn band_avx2(job: &Job<'_>, r0: usize, r1: usize, band: &mut Band, dest: Dest<'_>) -> BandResult {
+    grid_kernel::band(job, r0, r1, band, dest)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-fn band_avx512(
-    job: &Job<'_>,
-    r0: usize,
-    r1: usize,
-    band: &mut Band,
-    out_x: &mut [Vec3],
-    out_v: &mut [Vec3],
-) -> BandResult {
-    grid_kernel::band(job, r0, r1, band, out_x, out_v)
+fn band_avx512(job: &Job<'_>, r0: usize, r1: usize, band: &mut Band, dest: Dest<'_>) -> BandResult {
+    grid_kernel::band(job, r0, r1, band, dest)
 }
 
 /// One vertical pass's two rows of the grid XPBD path (see `solver::grid_xpbd`), with the

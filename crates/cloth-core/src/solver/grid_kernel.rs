@@ -95,6 +95,11 @@ pub(crate) struct Plan {
     /// The fast path also runs the continuous-collision passes (per row), so the solver must
     /// not run them again.
     pub ccd: bool,
+    /// Nothing else reads the particles until the step ends (no strain limiting, no
+    /// self-collision, continuous collision fused): the state stays in the scratch's arrays
+    /// from one substep to the next ([`GridScratch::rows`]) and goes back to the particles
+    /// in [`sync`].
+    persist: bool,
 }
 
 /// Scratch of the fast path: rest lengths by class, the next state, per-band ring buffers.
@@ -107,6 +112,13 @@ pub(crate) struct GridScratch {
     rest: [Vec<f32>; 6],
     next_position: Vec<Vec3>,
     next_velocity: Vec<Vec3>,
+    /// The state kept between substeps of a step (see [`Plan::persist`]), row-blocked
+    /// structure of arrays: row `s` is x, y, z, vx, vy, vz (`cols` each) from `6·cols·s`.
+    rows: Vec<f32>,
+    next_rows: Vec<f32>,
+    /// `rows` holds the current state and the particles' positions and velocities are
+    /// stale.
+    resident: bool,
     /// Rows of +0.0 and −0.0 (`cols + 2·PAD`), the terms of absent neighbours.
     plus_zero: Vec<f32>,
     minus_zero: Vec<f32>,
@@ -124,6 +136,11 @@ pub(crate) struct Band {
     out: [Vec<f32>; 6],
     /// Particles of the current row the contact passes must see.
     near: Vec<bool>,
+    /// The current row as `Vec3` for the per-particle contact passes: new positions and
+    /// velocities, old positions.
+    px: Vec<Vec3>,
+    pv: Vec<Vec3>,
+    start: Vec<Vec3>,
 }
 
 impl Band {
@@ -145,6 +162,10 @@ impl Band {
         }
         self.near.clear();
         self.near.resize(cols, true);
+        for a in [&mut self.px, &mut self.pv, &mut self.start] {
+            a.clear();
+            a.resize(cols, Vec3::ZERO);
+        }
         for (class, rows) in self.force.iter_mut().enumerate() {
             // Padding: −0.0 where the term is added, +0.0 where it is subtracted (see the
             // module docs); the anti-diagonal is read as `+A[c − 1]` and `−A[c]`, the other
@@ -300,10 +321,12 @@ pub(crate) fn plan(
         && !ctx.colliders.is_empty()
         && ctx.config.strain_limit.is_none()
         && ctx.config.self_collision.is_none();
+    let persist = ctx.config.strain_limit.is_none() && ctx.config.self_collision.is_none();
     Some(Plan {
         scheme,
         kernel,
         ccd,
+        persist,
     })
 }
 
@@ -317,8 +340,8 @@ pub(crate) struct Job<'a> {
     damping: f32,
     /// Stiffness and damping per class, `None` when its kind contributes nothing.
     params: [Option<(f32, f32)>; 6],
-    position: &'a [Vec3],
-    velocity: &'a [Vec3],
+    /// The old state.
+    src: Source<'a>,
     mass: &'a [f32],
     inv_mass: &'a [f32],
     rest: &'a [Vec<f32>; 6],
@@ -336,8 +359,22 @@ pub(crate) struct Job<'a> {
     ccd_min_path: f32,
 }
 
-/// A band with its rows of the next state, as the parallel iterator hands them out.
-type BandItem<'a> = (usize, ((&'a mut Band, &'a mut [Vec3]), &'a mut [Vec3]));
+/// Where the bands read the old state.
+#[derive(Clone, Copy)]
+enum Source<'a> {
+    /// The particles' positions and velocities.
+    Particles(&'a [Vec3], &'a [Vec3]),
+    /// The scratch's row-blocked arrays ([`GridScratch::rows`]).
+    Rows(&'a [f32]),
+}
+
+/// Where a band writes its rows of the new state.
+pub(crate) enum Dest<'a> {
+    /// Positions and velocities (the band's rows).
+    Particles(&'a mut [Vec3], &'a mut [Vec3]),
+    /// Row-blocked arrays (the band's rows).
+    Rows(&'a mut [f32]),
+}
 
 /// What a band reports.
 #[derive(Debug, Clone, Copy, Default)]
@@ -378,9 +415,18 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
     for b in &mut scratch.bands[..bands] {
         b.prepare(cols);
     }
-    scratch.next_position.resize(n, Vec3::ZERO);
-    scratch.next_velocity.resize(n, Vec3::ZERO);
+    if plan.persist {
+        scratch.next_rows.resize(6 * n, 0.0);
+    } else {
+        scratch.next_position.resize(n, Vec3::ZERO);
+        scratch.next_velocity.resize(n, Vec3::ZERO);
+    }
     let p = &*ctx.particles;
+    let src = if scratch.resident {
+        Source::Rows(&scratch.rows)
+    } else {
+        Source::Particles(&p.position, &p.velocity)
+    };
     let job = Job {
         rows,
         cols,
@@ -393,8 +439,7 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         },
         damping: if sw.damping { config.damping } else { 0.0 },
         params,
-        position: &p.position,
-        velocity: &p.velocity,
+        src,
         mass: &p.mass,
         inv_mass: &p.inv_mass,
         rest: &scratch.rest,
@@ -424,39 +469,79 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         },
     };
     let chunk = band_rows * cols;
-    let run = |(i, ((band, px), pv)): BandItem<'_>| {
+    let run = |i: usize, band: &mut Band, dest: Dest<'_>| {
         let r0 = i * band_rows;
         let r1 = (r0 + band_rows).min(rows);
-        simd::run_band(plan.kernel, &job, r0, r1, band, px, pv)
+        simd::run_band(plan.kernel, &job, r0, r1, band, dest)
     };
-    let result = if bands == 1 {
-        run((
+    let bands_scratch = &mut scratch.bands[..bands];
+    let result = match (plan.persist, bands) {
+        (true, 1) => run(0, &mut bands_scratch[0], Dest::Rows(&mut scratch.next_rows)),
+        (false, 1) => run(
             0,
-            (
-                (&mut scratch.bands[0], &mut scratch.next_position[..]),
-                &mut scratch.next_velocity[..],
-            ),
-        ))
-    } else {
-        scratch.bands[..bands]
+            &mut bands_scratch[0],
+            Dest::Particles(&mut scratch.next_position, &mut scratch.next_velocity),
+        ),
+        (true, _) => bands_scratch
+            .par_iter_mut()
+            .zip(scratch.next_rows.par_chunks_mut(6 * chunk))
+            .enumerate()
+            .map(|(i, (band, out))| run(i, band, Dest::Rows(out)))
+            .reduce(BandResult::default, BandResult::merge),
+        (false, _) => bands_scratch
             .par_iter_mut()
             .zip(scratch.next_position.par_chunks_mut(chunk))
             .zip(scratch.next_velocity.par_chunks_mut(chunk))
             .enumerate()
-            .map(run)
-            .reduce(BandResult::default, BandResult::merge)
+            .map(|(i, ((band, x), v))| run(i, band, Dest::Particles(x, v)))
+            .reduce(BandResult::default, BandResult::merge),
     };
     if result.degenerate {
         return false;
     }
-    let p = &mut *ctx.particles;
-    std::mem::swap(&mut p.position, &mut scratch.next_position);
-    std::mem::swap(&mut p.velocity, &mut scratch.next_velocity);
+    if plan.persist {
+        std::mem::swap(&mut scratch.rows, &mut scratch.next_rows);
+        scratch.resident = true;
+    } else {
+        let p = &mut *ctx.particles;
+        std::mem::swap(&mut p.position, &mut scratch.next_position);
+        std::mem::swap(&mut p.velocity, &mut scratch.next_velocity);
+        scratch.resident = false;
+    }
     ctx.contacts.contacts = result.contacts;
     if plan.ccd {
         ctx.contacts.ccd += result.ccd;
     }
     true
+}
+
+/// Writes the state kept in the scratch's arrays (if any) back to the particles: at the end
+/// of a step, and before a substep that falls back to the reference path.
+pub(crate) fn sync(scratch: &mut GridScratch, position: &mut [Vec3], velocity: &mut [Vec3]) {
+    if !scratch.resident {
+        return;
+    }
+    scratch.resident = false;
+    let cols = scratch.key.map_or(0, |(_, c, _, _)| c);
+    if cols == 0 {
+        return;
+    }
+    for ((row, x), v) in scratch
+        .rows
+        .chunks_exact(6 * cols)
+        .zip(position.chunks_exact_mut(cols))
+        .zip(velocity.chunks_exact_mut(cols))
+    {
+        let (px, rest) = row.split_at(cols);
+        let (py, rest) = rest.split_at(cols);
+        let (pz, rest) = rest.split_at(cols);
+        let (vx, rest) = rest.split_at(cols);
+        let (vy, vz) = rest.split_at(cols);
+        for c in 0..cols {
+            x[c] = Vec3::new(px[c], py[c], pz[c]);
+            v[c] = Vec3::new(vx[c], vy[c], vz[c]);
+        }
+    }
 }
 
 /// After a substep that fell back to the reference path, the continuous-collision passes the
@@ -480,8 +565,7 @@ pub(crate) fn band(
     r0: usize,
     r1: usize,
     band: &mut Band,
-    out_x: &mut [Vec3],
-    out_v: &mut [Vec3],
+    mut dest: Dest<'_>,
 ) -> BandResult {
     let (rows, cols) = (job.rows, job.cols);
     let mut result = BandResult::default();
@@ -556,15 +640,40 @@ pub(crate) fn band(
             if premasked {
                 ccd_mask_soa(job, s, &band.state[s % 3], &band.out, &mut band.near);
             }
-            let lo = (s - r0) * cols;
-            let px = &mut out_x[lo..lo + cols];
-            let pv = &mut out_v[lo..lo + cols];
-            let [x, y, z, vx, vy, vz] = &band.out;
-            for (c, (p, v)) in px.iter_mut().zip(pv.iter_mut()).enumerate() {
-                *p = Vec3::new(x[c], y[c], z[c]);
-                *v = Vec3::new(vx[c], vy[c], vz[c]);
+            // The per-particle passes (other colliders, continuous-collision candidates) on
+            // the row as `Vec3`.
+            let per_particle = if job.colliders.is_empty() {
+                false
+            } else if premasked {
+                band.near[..cols].contains(&true)
+            } else {
+                !job.soa_contacts || job.ccd
+            };
+            if per_particle {
+                let [x, y, z, vx, vy, vz] = &band.out;
+                for c in 0..cols {
+                    band.px[c] = Vec3::new(x[c], y[c], z[c]);
+                    band.pv[c] = Vec3::new(vx[c], vy[c], vz[c]);
+                }
+                old_positions(job, s, &mut band.start);
+                let (px, pv, start) = (&mut band.px, &mut band.pv, &band.start);
+                contacts_row(
+                    job,
+                    s,
+                    px,
+                    pv,
+                    start,
+                    &mut band.near,
+                    premasked,
+                    &mut result,
+                );
+                let [x, y, z, vx, vy, vz] = &mut band.out;
+                for c in 0..cols {
+                    [x[c], y[c], z[c]] = band.px[c].to_array();
+                    [vx[c], vy[c], vz[c]] = band.pv[c].to_array();
+                }
             }
-            contacts_row(job, s, px, pv, &mut band.near, premasked, &mut result);
+            write_row(&band.out, s - r0, cols, &mut dest);
         }
         // Row s + 3 replaces row s in the ring (needed by the springs of row s + 1).
         if s + 3 < rows && s + 1 < r1 {
@@ -581,11 +690,13 @@ const CULL_MARGIN: f32 = 1e-4;
 /// Contacts (and, when planned, continuous collision) of one new row, as the reference runs
 /// them on the whole cloth after integrating: each particle on its own, so they run on the
 /// runs of particles that [`near_mask`] does not rule out.
+#[allow(clippy::too_many_arguments)]
 fn contacts_row(
     job: &Job<'_>,
     s: usize,
     px: &mut [Vec3],
     pv: &mut [Vec3],
+    start: &[Vec3],
     near: &mut [bool],
     premasked: bool,
     result: &mut BandResult,
@@ -596,7 +707,7 @@ fn contacts_row(
     if premasked {
         // `near` already holds the continuous-collision candidates ([`ccd_mask_soa`]).
         let range = s * job.cols..(s + 1) * job.cols;
-        let (w, a) = (&job.inv_mass[range.clone()], &job.position[range]);
+        let (w, a) = (&job.inv_mass[range], start);
         let mut i = 0;
         let n = px.len();
         while i < n {
@@ -621,8 +732,7 @@ fn contacts_row(
         return;
     }
     let range = s * job.cols..(s + 1) * job.cols;
-    let w = &job.inv_mass[range.clone()];
-    let start = &job.position[range];
+    let w = &job.inv_mass[range];
     let pos_weight = match job.scheme {
         Scheme::Forward => 0.0,
         Scheme::Symplectic => job.h,
@@ -936,11 +1046,34 @@ fn mark(
 #[inline(always)]
 fn load_row(job: &Job<'_>, s: usize, drift: bool, half: f32, dst: &mut [Vec<f32>; 6]) {
     let cols = job.cols;
-    let xs = &job.position[s * cols..][..cols];
-    let vs = &job.velocity[s * cols..][..cols];
     let [x, y, z, vx, vy, vz] = dst;
     let (x, y, z) = (&mut x[..cols], &mut y[..cols], &mut z[..cols]);
     let (vx, vy, vz) = (&mut vx[..cols], &mut vy[..cols], &mut vz[..cols]);
+    let (xs, vs) = match job.src {
+        Source::Particles(position, velocity) => {
+            (&position[s * cols..][..cols], &velocity[s * cols..][..cols])
+        }
+        Source::Rows(all) => {
+            let row = &all[6 * cols * s..][..6 * cols];
+            let (px, rest) = row.split_at(cols);
+            let (py, rest) = rest.split_at(cols);
+            let (pz, rest) = rest.split_at(cols);
+            let (pvx, rest) = rest.split_at(cols);
+            let (pvy, pvz) = rest.split_at(cols);
+            // `p + ½h·v` per component, as glam computes it for `Vec3`.
+            for c in 0..cols {
+                let (p, v) = ([px[c], py[c], pz[c]], [pvx[c], pvy[c], pvz[c]]);
+                let p = if drift {
+                    [p[0] + half * v[0], p[1] + half * v[1], p[2] + half * v[2]]
+                } else {
+                    p
+                };
+                [x[c], y[c], z[c]] = p;
+                [vx[c], vy[c], vz[c]] = v;
+            }
+            return;
+        }
+    };
     for c in 0..cols {
         let (p, v) = (xs[c], vs[c]);
         let p = if drift { p + half * v } else { p };
@@ -950,6 +1083,46 @@ fn load_row(job: &Job<'_>, s: usize, drift: bool, half: f32, dst: &mut [Vec<f32>
         vx[c] = v.x;
         vy[c] = v.y;
         vz[c] = v.z;
+    }
+}
+
+/// Row `s`'s old positions as `Vec3` (for the per-particle contact passes).
+#[inline(always)]
+fn old_positions(job: &Job<'_>, s: usize, dst: &mut [Vec3]) {
+    let cols = job.cols;
+    match job.src {
+        Source::Particles(position, _) => {
+            dst[..cols].copy_from_slice(&position[s * cols..][..cols]);
+        }
+        Source::Rows(all) => {
+            let row = &all[6 * cols * s..][..3 * cols];
+            let (px, rest) = row.split_at(cols);
+            let (py, pz) = rest.split_at(cols);
+            for c in 0..cols {
+                dst[c] = Vec3::new(px[c], py[c], pz[c]);
+            }
+        }
+    }
+}
+
+/// Writes a band's new row `i` (counted from the band's first row) to `dest`.
+#[inline(always)]
+fn write_row(out: &[Vec<f32>; 6], i: usize, cols: usize, dest: &mut Dest<'_>) {
+    match dest {
+        Dest::Particles(px, pv) => {
+            let (px, pv) = (&mut px[i * cols..][..cols], &mut pv[i * cols..][..cols]);
+            let [x, y, z, vx, vy, vz] = out;
+            for c in 0..cols {
+                px[c] = Vec3::new(x[c], y[c], z[c]);
+                pv[c] = Vec3::new(vx[c], vy[c], vz[c]);
+            }
+        }
+        Dest::Rows(rows) => {
+            let row = &mut rows[6 * cols * i..][..6 * cols];
+            for (k, comp) in row.chunks_exact_mut(cols).enumerate() {
+                comp.copy_from_slice(&out[k][..cols]);
+            }
+        }
     }
 }
 
@@ -966,8 +1139,8 @@ fn springs(
     out: [&mut [f32]; 3],
 ) -> bool {
     let m = rest.len();
-    let [ax, ay, az, avx, avy, avz] = a.map(|s| &s[..m]);
-    let [bx, by, bz, bvx, bvy, bvz] = b.map(|s| &s[..m]);
+    let [ax, ay, az, avx, avy, avz] = heads(a, m);
+    let [bx, by, bz, bvx, bvy, bvz] = heads(b, m);
     let [fx, fy, fz] = out;
     let (fx, fy, fz) = (&mut fx[..m], &mut fy[..m], &mut fz[..m]);
     debug_assert_eq!(m % LANES, 0);
@@ -977,8 +1150,8 @@ fn springs(
     let mut i = 0;
     while i < m {
         let (mut ox, mut oy, mut oz) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
-        let [ax, ay, az, avx, avy, avz] = [ax, ay, az, avx, avy, avz].map(|s| lanes(s, i));
-        let [bx, by, bz, bvx, bvy, bvz] = [bx, by, bz, bvx, bvy, bvz].map(|s| lanes(s, i));
+        let [ax, ay, az, avx, avy, avz] = chunks([ax, ay, az, avx, avy, avz], i);
+        let [bx, by, bz, bvx, bvy, bvz] = chunks([bx, by, bz, bvx, bvy, bvz], i);
         let rest = lanes(rest, i);
         let mut bad = false;
         for j in 0..LANES {
@@ -1003,6 +1176,31 @@ fn springs(
         i += LANES;
     }
     degenerate
+}
+
+/// The first `m` elements of every slice. (Element by element: `array::map` is a call that
+/// does not inline into the `#[target_feature]` kernels.)
+#[inline(always)]
+fn heads<const K: usize>(s: [&[f32]; K], m: usize) -> [&[f32]; K] {
+    let mut out = s;
+    let mut k = 0;
+    while k < K {
+        out[k] = &s[k][..m];
+        k += 1;
+    }
+    out
+}
+
+/// [`lanes`] of every slice.
+#[inline(always)]
+fn chunks<const K: usize>(s: [&[f32]; K], i: usize) -> [&[f32; LANES]; K] {
+    let mut out = [&[0.0; LANES]; K];
+    let mut k = 0;
+    while k < K {
+        out[k] = lanes(s[k], i);
+        k += 1;
+    }
+    out
 }
 
 /// `LANES` elements of `s` from `i`, as an array.
@@ -1084,7 +1282,7 @@ fn integrate_component(
 ) {
     let n = x.len();
     let (mass, w, v) = (&mass[..n], &w[..n], &v[..n]);
-    let t = t.map(|s| &s[..n]);
+    let t = heads(t, n);
     let args = (h, g, damping, mass, w, x, v, t);
     match scheme {
         Scheme::Forward => integrate_lanes::<FORWARD>(args, out_x, out_v),
@@ -1153,7 +1351,7 @@ fn integrate_lanes<const S: u8>(args: IntegrateArgs<'_>, out_x: &mut [f32], out_
     let mut c0 = 0;
     while c0 + LANES <= n {
         let (m, wl, xl, vl) = (lanes(mass, c0), lanes(w, c0), lanes(x, c0), lanes(v, c0));
-        let tl = t.map(|s| lanes(s, c0));
+        let tl = chunks(t, c0);
         let (mut ox, mut ov) = ([0.0; LANES], [0.0; LANES]);
         for j in 0..LANES {
             let terms = [
@@ -1167,7 +1365,10 @@ fn integrate_lanes<const S: u8>(args: IntegrateArgs<'_>, out_x: &mut [f32], out_
         c0 += LANES;
     }
     for c in c0..n {
-        let terms = t.map(|s| s[c]);
+        let terms = [
+            t[0][c], t[1][c], t[2][c], t[3][c], t[4][c], t[5][c], t[6][c], t[7][c], t[8][c],
+            t[9][c], t[10][c], t[11][c],
+        ];
         (out_x[c], out_v[c]) = one!(mass[c], w[c], x[c], v[c], terms);
     }
 }
@@ -1184,6 +1385,8 @@ pub(crate) fn run(
     if substep(ctx, scratch, plan) {
         return;
     }
+    let p = &mut *ctx.particles;
+    sync(scratch, &mut p.position, &mut p.velocity);
     if plan.ccd {
         keep_start(scratch, &ctx.particles.position);
     }

@@ -92,6 +92,15 @@ impl Solver {
         self.stats = SolverStats::default();
     }
 
+    /// Ends a step: the state a fast path kept in its own arrays goes back to the particles.
+    pub fn end_step(&mut self, particles: &mut Particles) {
+        grid_kernel::sync(
+            &mut self.grid,
+            &mut particles.position,
+            &mut particles.velocity,
+        );
+    }
+
     /// The solver figures of the step so far.
     pub fn stats(&self) -> SolverStats {
         self.stats
