@@ -884,6 +884,22 @@ fn contacts_soa(job: &Job<'_>, s: usize, out: &mut [Vec<f32>; 6]) -> u32 {
         let mut c0 = 0;
         while c0 + LANES <= cols {
             let (lx, ly, lz) = (lanes(x, c0), lanes(y, c0), lanes(z, c0));
+            // A chunk whose particles are all outside the contact surface (φ ≥ 0, computed
+            // as `Shape::distance` does) is left as it is.
+            let mut clear = true;
+            for j in 0..LANES {
+                let dist = if sphere {
+                    let (dx, dy, dz) = (lx[j] - a.x, ly[j] - a.y, lz[j] - a.z);
+                    (dx * dx + dy * dy + dz * dz).sqrt() - r
+                } else {
+                    (lx[j] - a.x) * norm.x + (ly[j] - a.y) * norm.y + (lz[j] - a.z) * norm.z
+                };
+                clear &= dist - t >= 0.0;
+            }
+            if clear {
+                c0 += LANES;
+                continue;
+            }
             let (lvx, lvy, lvz) = (lanes(vx, c0), lanes(vy, c0), lanes(vz, c0));
             let lw = lanes(w, c0);
             let mut o = [[0.0_f32; LANES]; 6];
@@ -1002,22 +1018,55 @@ fn ccd_mask_soa(job: &Job<'_>, s: usize, a: &[Vec<f32>; 6], b: &[Vec<f32>; 6], n
                 )
             }
         };
-        for c in 0..cols {
-            let (sx, sy, sz) = (ax[c] + shift.x, ay[c] + shift.y, az[c] + shift.z);
-            let (px, py, pz) = (bx[c] - sx, by[c] - sy, bz[c] - sz);
-            let l2 = px * px + py * py + pz * pz;
-            let len = l2.sqrt();
-            let (db, _) = dist(bx[c], by[c], bz[c]);
-            let (da, [nx, ny, nz]) = dist(sx, sy, sz);
-            let skip = w[c] == 0.0
-                || l2 < 0.2 * tau * tau
-                || len.is_nan()
-                || len < 0.5 * tau
-                || db >= len
-                || da < 0.0
-                || da + db >= len
-                || (da <= ccd::HIT_EPSILON && px * nx + py * ny + pz * nz >= -tau);
-            near[c] |= !skip;
+        // The signed distance alone (the same operations as `dist`'s).
+        let dist_only = |x: f32, y: f32, z: f32| -> f32 {
+            if sphere {
+                let (dx, dy, dz) = (x - p.x, y - p.y, z - p.z);
+                (dx * dx + dy * dy + dz * dz).sqrt() - r
+            } else {
+                (x - p.x) * n.x + (y - p.y) * n.y + (z - p.z) * n.z
+            }
+        };
+        // One particle: `resolve_in`'s tests, the cheap ones first (`full` adds the ones
+        // that need the start point's distance and normal).
+        macro_rules! skip {
+            ($c:expr, $full:expr) => {{
+                let c = $c;
+                let (sx, sy, sz) = (ax[c] + shift.x, ay[c] + shift.y, az[c] + shift.z);
+                let (px, py, pz) = (bx[c] - sx, by[c] - sy, bz[c] - sz);
+                let l2 = px * px + py * py + pz * pz;
+                let len = l2.sqrt();
+                let db = dist_only(bx[c], by[c], bz[c]);
+                let cheap = w[c] == 0.0
+                    || l2 < 0.2 * tau * tau
+                    || len.is_nan()
+                    || len < 0.5 * tau
+                    || db >= len;
+                if $full {
+                    let (da, [nx, ny, nz]) = dist(sx, sy, sz);
+                    cheap
+                        || da < 0.0
+                        || da + db >= len
+                        || (da <= ccd::HIT_EPSILON && px * nx + py * ny + pz * nz >= -tau)
+                } else {
+                    cheap
+                }
+            }};
+        }
+        let mut c0 = 0;
+        while c0 < cols {
+            let c1 = (c0 + LANES).min(cols);
+            // A chunk whose particles all pass the cheap tests is left as it is.
+            let mut all = true;
+            for c in c0..c1 {
+                all &= skip!(c, false);
+            }
+            if !all {
+                for c in c0..c1 {
+                    near[c] |= !skip!(c, true);
+                }
+            }
+            c0 = c1;
         }
     }
 }
