@@ -1062,8 +1062,8 @@ fn ccd_mask_soa(job: &Job<'_>, s: usize, a: &[Vec<f32>; 6], b: &[Vec<f32>; 6], n
                 all &= skip!(c, false);
             }
             if !all {
-                for c in c0..c1 {
-                    near[c] |= !skip!(c, true);
+                for (c, near) in near.iter_mut().enumerate().take(c1).skip(c0) {
+                    *near |= !skip!(c, true);
                 }
             }
             c0 = c1;
