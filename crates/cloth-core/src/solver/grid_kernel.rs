@@ -4,8 +4,11 @@
 //! pattern, so a substep can run row by row over contiguous slices (no index chasing, no
 //! bounds checks in the inner loops, which the compiler vectorises):
 //!
-//! 1. a row's particle state is copied from the `Vec3` arrays into six `f32` row buffers
-//!    (x, y, z, vx, vy, vz; position Verlet's first drift is applied here);
+//! 1. a row's particle state is copied into six `f32` row buffers (x, y, z, vx, vy, vz;
+//!    position Verlet's first drift is applied here), from the `Vec3` arrays or, when
+//!    nothing else reads the particles between substeps ([`Plan::persist`]), from the
+//!    row-blocked arrays the previous substep wrote (synced back to the particles at the
+//!    step's end, [`sync`], and before any fallback to the reference path);
 //! 2. the six spring classes whose first end lies in row `s` (warp `(s,c)–(s+1,c)`, weft
 //!    `(s,c)–(s,c+1)`, the two shear diagonals, the two bend springs) are evaluated once each
 //!    from rows `s`, `s+1`, `s+2` into small per-class ring buffers (3 rows);
@@ -13,7 +16,12 @@
 //!    particle sums gravity, damping and its 12 spring contributions **in exactly the order
 //!    of the reference [`crate::forces::accumulate`]** (kind by kind, springs in row-major
 //!    order, `+f` at the spring's first end, `−f` at its second), integrates, and is written
-//!    to the *next* state arrays; contacts (and continuous collision) run on that row at once.
+//!    to the *next* state arrays; contacts (and continuous collision) run on that row at once:
+//!    against spheres and planes that do not turn, the discrete contacts run vectorised on
+//!    the row arrays ([`contacts_soa`], the reference's operations) and continuous
+//!    collision's candidates come from its own cheap culls on the arrays
+//!    ([`ccd_mask_soa`]); only candidates (and other colliders) take the per-particle code.
+//!    Chunks of particles clear of every collider skip both.
 //!
 //! Absent neighbours (grid edges, switched-off kinds) contribute a signed zero that is an
 //! exact identity: `x + (−0.0) == x` and `x − (+0.0) == x` for every `x`, so the padding of
