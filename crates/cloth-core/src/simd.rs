@@ -111,7 +111,7 @@ pub fn kernel() -> Kernel {
 }
 
 /// The kernel that steps `sim` on this thread: [`kernel`] when a grid fast path applies (an
-/// explicit integrator on a cloth built by [`crate::GridBuilder`] with air drag off, or XPBD
+/// explicit integrator on a cloth built by [`crate::GridBuilder`], or XPBD
 /// on such a cloth without self-collision or tethers to pins), [`Kernel::Reference`]
 /// otherwise.
 #[must_use]
@@ -121,7 +121,7 @@ pub fn kernel_for(sim: &crate::Simulation) -> Kernel {
     let xpbd = cfg.integrator == crate::Integrator::Xpbd
         && k != Kernel::Reference
         && grid_xpbd::applies(cfg, sim.topology(), &sim.particles().inv_mass);
-    if xpbd || grid_kernel::applies(k, cfg.integrator, cfg, sim.topology()) {
+    if xpbd || grid_kernel::applies(k, cfg.integrator, sim.topology()) {
         k
     } else {
         Kernel::Reference
@@ -267,8 +267,10 @@ fn row_avx512(
     grid_xpbd::row(x, corr, shared, g0, s, lambda, mask);
 }
 
-/// The air forces of one cell row of the grid XPBD path, with the chosen kernel.
+/// The air forces of one cell row of the grid paths (XPBD's and the explicit integrators'),
+/// with `kernel` (the stepping thread's choice, passed on to the pool's workers).
 pub(crate) fn xpbd_air(
+    kernel: Kernel,
     x: &[Vec<f32>; 3],
     v: &[Vec<f32>; 3],
     i0: usize,
@@ -276,7 +278,7 @@ pub(crate) fn xpbd_air(
     k: &AirCoefficients,
     out: [[&mut [f32]; 3]; 2],
 ) {
-    match kernel() {
+    match kernel {
         #[cfg(target_arch = "x86_64")]
         Kernel::Avx512 if Kernel::Avx512.is_available() => {
             // SAFETY: the CPU has every feature (checked on the line above).

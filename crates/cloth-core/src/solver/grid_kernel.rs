@@ -23,6 +23,11 @@
 //!    ([`ccd_mask_soa`]); only candidates (and other colliders) take the per-particle code.
 //!    Chunks of particles clear of every collider skip both.
 //!
+//! With air on, a pass before the bands computes the air force of every triangle from the
+//! old state (the reference's per-triangle operations, shared with XPBD's grid path) into
+//! rows of cells, and each particle adds its (up to six) triangles' shares after its spring
+//! terms, in the reference's triangle order.
+//!
 //! Absent neighbours (grid edges, switched-off kinds) contribute a signed zero that is an
 //! exact identity: `x + (−0.0) == x` and `x − (+0.0) == x` for every `x`, so the padding of
 //! the ring buffers holds −0.0 where a term is added and +0.0 where it is subtracted. Every
@@ -130,6 +135,14 @@ pub(crate) struct GridScratch {
     /// `rows` holds the current state and the particles' positions and velocities are
     /// stale.
     resident: bool,
+    /// Air (when on): the old state as whole-cloth structure of arrays (position Verlet's
+    /// drift applied), the input of [`crate::simd::xpbd_air`].
+    air_x: [Vec<f32>; 3],
+    air_v: [Vec<f32>; 3],
+    /// The air force / 3 of the two triangles of every cell by triangle and component: a
+    /// row of `cols + 1` per cell row, cell `c` at `1 + c`, −0.0 in the first and last slot
+    /// (the terms of absent triangles).
+    air_tri: [[Vec<f32>; 3]; 2],
     /// Rows of +0.0 and −0.0 (`cols + 2·PAD`), the terms of absent neighbours.
     plus_zero: Vec<f32>,
     minus_zero: Vec<f32>,
@@ -214,7 +227,7 @@ pub(super) fn kind_params(config: &SimConfig, kind: SpringKind) -> Option<(f32, 
     }
 }
 
-/// The reference's air term is per triangle; the fast path runs only when it is off.
+/// Whether the air force is on (with a non-zero density and some coefficient).
 pub(super) fn air_active(config: &SimConfig) -> bool {
     let air = &config.air;
     config.forces.air
@@ -239,6 +252,10 @@ impl GridScratch {
             && cols >= 2
             && load_rest(&mut self.rest, topology, rows, cols);
         self.key = Some((rows, cols, springs, ok));
+        // A new layout: the triangle rows are rebuilt with their −0.0 ends.
+        for a in self.air_tri.iter_mut().flatten() {
+            a.clear();
+        }
         if ok {
             let padded = cols + 2 * PAD;
             self.plus_zero.clear();
@@ -300,16 +317,8 @@ pub(super) fn load_rest(
 
 /// Whether the fast path runs for these settings (the topology's springs are checked
 /// against the grid pattern once more before the first substep).
-pub(crate) fn applies(
-    kernel: Kernel,
-    integrator: Integrator,
-    config: &SimConfig,
-    topology: &Topology,
-) -> bool {
-    kernel != Kernel::Reference
-        && Scheme::of(integrator).is_some()
-        && !air_active(config)
-        && topology.grid().is_some()
+pub(crate) fn applies(kernel: Kernel, integrator: Integrator, topology: &Topology) -> bool {
+    kernel != Kernel::Reference && Scheme::of(integrator).is_some() && topology.grid().is_some()
 }
 
 /// Decides whether this substep runs on the grid fast path (and prepares the scratch).
@@ -320,7 +329,7 @@ pub(crate) fn plan(
 ) -> Option<Plan> {
     let scheme = Scheme::of(integrator)?;
     let kernel = simd::kernel();
-    if !applies(kernel, integrator, ctx.config, ctx.topology) {
+    if !applies(kernel, integrator, ctx.topology) {
         return None;
     }
     if !scratch.prepare(ctx.topology, ctx.particles.len()) {
@@ -351,6 +360,8 @@ pub(crate) struct Job<'a> {
     damping: f32,
     /// Stiffness and damping per class, `None` when its kind contributes nothing.
     params: [Option<(f32, f32)>; 6],
+    /// The air's triangle forces ([`GridScratch::air_tri`]) when the air is on.
+    air: Option<&'a [[Vec<f32>; 3]; 2]>,
     /// The old state.
     src: Source<'a>,
     mass: &'a [f32],
@@ -438,6 +449,20 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
     } else {
         Source::Particles(&p.position, &p.velocity)
     };
+    let air = sw.air && air_active(config);
+    if air {
+        let drift = (plan.scheme == Scheme::Verlet).then_some(0.5 * ctx.h);
+        let coeff = super::grid_xpbd::AirCoefficients::of(config, ctx.wind);
+        air_forces(
+            plan.kernel,
+            &src,
+            (rows, cols),
+            drift,
+            &coeff,
+            (&mut scratch.air_x, &mut scratch.air_v),
+            &mut scratch.air_tri,
+        );
+    }
     let job = Job {
         rows,
         cols,
@@ -450,6 +475,7 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         },
         damping: if sw.damping { config.damping } else { 0.0 },
         params,
+        air: air.then_some(&scratch.air_tri),
         src,
         mass: &p.mass,
         inv_mass: &p.inv_mass,
@@ -524,6 +550,82 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         ctx.contacts.ccd += result.ccd;
     }
     true
+}
+
+/// The air pass of a substep, before the bands: the old state as whole-cloth arrays (with
+/// position Verlet's drift `p + ½h·v` when `drift` is `Some(½h)`, as the reference evaluates
+/// its forces there), then the air force / 3 of both triangles of every cell
+/// ([`simd::xpbd_air`] with `kernel`, the reference's operations), cell rows in parallel, into
+/// `tri` ([`GridScratch::air_tri`]).
+fn air_forces(
+    kernel: Kernel,
+    src: &Source<'_>,
+    (rows, cols): (usize, usize),
+    drift: Option<f32>,
+    coeff: &super::grid_xpbd::AirCoefficients,
+    (x, v): (&mut [Vec<f32>; 3], &mut [Vec<f32>; 3]),
+    tri: &mut [[Vec<f32>; 3]; 2],
+) {
+    let n = rows * cols;
+    for a in x.iter_mut().chain(v.iter_mut()) {
+        a.resize(n, 0.0);
+    }
+    {
+        let [xx, xy, xz] = &mut *x;
+        let [vx, vy, vz] = &mut *v;
+        for s in 0..rows {
+            let lo = s * cols;
+            for c in 0..cols {
+                let (p, u) = match *src {
+                    Source::Particles(position, velocity) => {
+                        (position[lo + c].to_array(), velocity[lo + c].to_array())
+                    }
+                    Source::Rows(all) => {
+                        let row = &all[6 * cols * s..][..6 * cols];
+                        let at = |k: usize| row[k * cols + c];
+                        ([at(0), at(1), at(2)], [at(3), at(4), at(5)])
+                    }
+                };
+                // `p + ½h·v` per component, as glam computes it for `Vec3`.
+                let p = match drift {
+                    Some(half) => [p[0] + half * u[0], p[1] + half * u[1], p[2] + half * u[2]],
+                    None => p,
+                };
+                [xx[lo + c], xy[lo + c], xz[lo + c]] = p;
+                [vx[lo + c], vy[lo + c], vz[lo + c]] = u;
+            }
+        }
+    }
+    let len = (rows - 1) * (cols + 1);
+    for a in tri.iter_mut().flatten() {
+        // Only the interior is written below: the ends keep their −0.0.
+        a.resize(len, -0.0);
+    }
+    let (x, v) = (&*x, &*v);
+    let [[ax, ay, az], [bx, by, bz]] = tri;
+    let w = cols + 1;
+    ax.par_chunks_mut(w)
+        .zip(ay.par_chunks_mut(w))
+        .zip(az.par_chunks_mut(w))
+        .zip(bx.par_chunks_mut(w))
+        .zip(by.par_chunks_mut(w))
+        .zip(bz.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(r, (((((ax, ay), az), bx), by), bz))| {
+            let m = 1..cols;
+            simd::xpbd_air(
+                kernel,
+                x,
+                v,
+                r * cols,
+                cols,
+                coeff,
+                [
+                    [&mut ax[m.clone()], &mut ay[m.clone()], &mut az[m.clone()]],
+                    [&mut bx[m.clone()], &mut by[m.clone()], &mut bz[m]],
+                ],
+            );
+        });
 }
 
 /// Writes the state kept in the scratch's arrays (if any) back to the particles: at the end
@@ -1307,6 +1409,25 @@ fn particle_row(job: &Job<'_>, s: usize, band: &mut Band) {
             &pick(BENDV, Some(s), true)[PAD..],      // + vertical bend (s, c)
             &pick(BENDH, Some(s), true)[PAD..],      // + horizontal bend (s, c)
         ];
+        // The air's terms in the reference's triangle order: cell (s−1, c−1)'s second
+        // triangle, cell (s−1, c)'s two, cell (s, c−1)'s two, cell (s, c)'s first (a cell row
+        // holds cell c at 1 + c, −0.0 at both ends; absent cell rows are −0.0).
+        let air = job.air.map(|tri| {
+            let cells = |r: Option<usize>, k: usize| -> &[f32] {
+                match r {
+                    Some(r) if r + 1 < rows => &tri[k][comp][r * (cols + 1)..][..cols + 1],
+                    _ => job.minus_zero,
+                }
+            };
+            [
+                cells(up1, 1),
+                &cells(up1, 0)[1..],
+                &cells(up1, 1)[1..],
+                cells(Some(s), 0),
+                cells(Some(s), 1),
+                &cells(Some(s), 0)[1..],
+            ]
+        });
         integrate_component(
             job.scheme,
             job.h,
@@ -1317,6 +1438,7 @@ fn particle_row(job: &Job<'_>, s: usize, band: &mut Band) {
             &state[comp][..cols],
             &state[3 + comp][..cols],
             t,
+            air,
             &mut out_x[comp][..cols],
             &mut out_v[comp][..cols],
         );
@@ -1337,17 +1459,31 @@ fn integrate_component(
     x: &[f32],
     v: &[f32],
     t: [&[f32]; 12],
+    air: Option<[&[f32]; 6]>,
     out_x: &mut [f32],
     out_v: &mut [f32],
 ) {
     let n = x.len();
     let (mass, w, v) = (&mass[..n], &w[..n], &v[..n]);
     let t = heads(t, n);
-    let args = (h, g, damping, mass, w, x, v, t);
-    match scheme {
-        Scheme::Forward => integrate_lanes::<FORWARD>(args, out_x, out_v),
-        Scheme::Symplectic => integrate_lanes::<SYMPLECTIC>(args, out_x, out_v),
-        Scheme::Verlet => integrate_lanes::<VERLET>(args, out_x, out_v),
+    match air {
+        None => {
+            // (The air slot is unused without air.)
+            let args = (h, g, damping, mass, w, x, v, t, [x; 6]);
+            match scheme {
+                Scheme::Forward => integrate_lanes::<FORWARD, false>(args, out_x, out_v),
+                Scheme::Symplectic => integrate_lanes::<SYMPLECTIC, false>(args, out_x, out_v),
+                Scheme::Verlet => integrate_lanes::<VERLET, false>(args, out_x, out_v),
+            }
+        }
+        Some(air) => {
+            let args = (h, g, damping, mass, w, x, v, t, heads(air, n));
+            match scheme {
+                Scheme::Forward => integrate_lanes::<FORWARD, true>(args, out_x, out_v),
+                Scheme::Symplectic => integrate_lanes::<SYMPLECTIC, true>(args, out_x, out_v),
+                Scheme::Verlet => integrate_lanes::<VERLET, true>(args, out_x, out_v),
+            }
+        }
     }
 }
 
@@ -1355,8 +1491,8 @@ const FORWARD: u8 = 0;
 const SYMPLECTIC: u8 = 1;
 const VERLET: u8 = 2;
 
-/// The arguments of [`integrate_component`] past the scheme: h, g, d, mass, 1/m, x, v and the
-/// 12 terms.
+/// The arguments of [`integrate_component`] past the scheme: h, g, d, mass, 1/m, x, v, the
+/// 12 spring terms and the 6 air terms.
 type IntegrateArgs<'a> = (
     f32,
     f32,
@@ -1366,21 +1502,27 @@ type IntegrateArgs<'a> = (
     &'a [f32],
     &'a [f32],
     [&'a [f32]; 12],
+    [&'a [f32]; 6],
 );
 
 /// [`integrate_component`] for scheme `S`: whole chunks of LANES particles on local arrays
 /// (vectorised without run-time alias checks), then the remainder one by one, with the same
 /// operations.
 #[inline(always)]
-fn integrate_lanes<const S: u8>(args: IntegrateArgs<'_>, out_x: &mut [f32], out_v: &mut [f32]) {
-    let (h, g, damping, mass, w, x, v, t) = args;
+fn integrate_lanes<const S: u8, const AIR: bool>(
+    args: IntegrateArgs<'_>,
+    out_x: &mut [f32],
+    out_v: &mut [f32],
+) {
+    let (h, g, damping, mass, w, x, v, t, air) = args;
     let n = x.len();
     let half = 0.5 * h;
-    // Particle c: m·g − d·v, the spring terms in the reference's order, then the update.
-    // (A macro, not a closure: always inlined into the vector loop.)
+    // Particle c: m·g − d·v, the spring terms in the reference's order, the air's terms (with
+    // `AIR`), then the update. (A macro, not a closure: always inlined into the vector loop.)
     macro_rules! one {
-        ($mass:expr, $w:expr, $x:expr, $v:expr, $t:expr) => {{
-            let (mass, w, x, v, t): (f32, f32, f32, f32, [f32; 12]) = ($mass, $w, $x, $v, $t);
+        ($mass:expr, $w:expr, $x:expr, $v:expr, $t:expr, $a:expr) => {{
+            let (mass, w, x, v, t, a): (f32, f32, f32, f32, [f32; 12], [f32; 6]) =
+                ($mass, $w, $x, $v, $t, $a);
             let mut f = mass * g - damping * v;
             f -= t[0];
             f += t[1];
@@ -1394,6 +1536,14 @@ fn integrate_lanes<const S: u8>(args: IntegrateArgs<'_>, out_x: &mut [f32], out_
             f -= t[9];
             f += t[10];
             f += t[11];
+            if AIR {
+                f += a[0];
+                f += a[1];
+                f += a[2];
+                f += a[3];
+                f += a[4];
+                f += a[5];
+            }
             let hw = h * w;
             match S {
                 FORWARD => (x + h * v, v + hw * f),
@@ -1412,13 +1562,15 @@ fn integrate_lanes<const S: u8>(args: IntegrateArgs<'_>, out_x: &mut [f32], out_
     while c0 + LANES <= n {
         let (m, wl, xl, vl) = (lanes(mass, c0), lanes(w, c0), lanes(x, c0), lanes(v, c0));
         let tl = chunks(t, c0);
+        let al = if AIR { chunks(air, c0) } else { [xl; 6] };
         let (mut ox, mut ov) = ([0.0; LANES], [0.0; LANES]);
         for j in 0..LANES {
             let terms = [
                 tl[0][j], tl[1][j], tl[2][j], tl[3][j], tl[4][j], tl[5][j], tl[6][j], tl[7][j],
                 tl[8][j], tl[9][j], tl[10][j], tl[11][j],
             ];
-            (ox[j], ov[j]) = one!(m[j], wl[j], xl[j], vl[j], terms);
+            let a = [al[0][j], al[1][j], al[2][j], al[3][j], al[4][j], al[5][j]];
+            (ox[j], ov[j]) = one!(m[j], wl[j], xl[j], vl[j], terms, a);
         }
         out_x[c0..c0 + LANES].copy_from_slice(&ox);
         out_v[c0..c0 + LANES].copy_from_slice(&ov);
@@ -1429,7 +1581,14 @@ fn integrate_lanes<const S: u8>(args: IntegrateArgs<'_>, out_x: &mut [f32], out_
             t[0][c], t[1][c], t[2][c], t[3][c], t[4][c], t[5][c], t[6][c], t[7][c], t[8][c],
             t[9][c], t[10][c], t[11][c],
         ];
-        (out_x[c], out_v[c]) = one!(mass[c], w[c], x[c], v[c], terms);
+        let a = if AIR {
+            [
+                air[0][c], air[1][c], air[2][c], air[3][c], air[4][c], air[5][c],
+            ]
+        } else {
+            [0.0; 6]
+        };
+        (out_x[c], out_v[c]) = one!(mass[c], w[c], x[c], v[c], terms, a);
     }
 }
 

@@ -217,15 +217,10 @@ impl XpbdGrid {
         let p = &mut *ctx.particles;
         start.resize(p.len(), Vec3::ZERO);
         if air {
-            let a = &cfg.air;
             scatter(&p.position, &mut self.pos);
             scatter(&p.velocity, &mut self.vel);
-            let coeff = AirCoefficients {
-                density: a.density,
-                drag: a.drag_coefficient,
-                lift: a.lift_coefficient,
-                wind: ctx.wind,
-            };
+            let coeff = AirCoefficients::of(cfg, ctx.wind);
+            let kernel = crate::simd::kernel();
             let (x, v) = (&self.pos, &self.vel);
             let [t0, t1] = &mut self.air;
             let [ax, ay, az] = t0;
@@ -240,6 +235,7 @@ impl XpbdGrid {
                 .enumerate()
                 .for_each(|(r, (((((ax, ay), az), bx), by), bz))| {
                     crate::simd::xpbd_air(
+                        kernel,
                         x,
                         v,
                         r * cols,
@@ -695,6 +691,19 @@ pub(crate) struct AirCoefficients {
     drag: f32,
     lift: f32,
     wind: Vec3,
+}
+
+impl AirCoefficients {
+    /// The coefficients of `config`'s air with the current `wind`.
+    pub(crate) fn of(config: &SimConfig, wind: Vec3) -> Self {
+        let a = &config.air;
+        Self {
+            density: a.density,
+            drag: a.drag_coefficient,
+            lift: a.lift_coefficient,
+            wind,
+        }
+    }
 }
 
 /// The air force (divided by 3) of both triangles of every cell of the cell row whose first
