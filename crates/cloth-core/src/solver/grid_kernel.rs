@@ -552,6 +552,19 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
     true
 }
 
+/// Writes particle `c`'s position (with `p + ½h·v` per component, as glam computes it for
+/// `Vec3`, when `drift` is `Some(½h)`) and velocity into the six gathered rows.
+#[inline(always)]
+fn gather_one(out: &mut [&mut [f32]; 6], c: usize, p: [f32; 3], u: [f32; 3], drift: Option<f32>) {
+    let p = match drift {
+        Some(half) => [p[0] + half * u[0], p[1] + half * u[1], p[2] + half * u[2]],
+        None => p,
+    };
+    let [xx, xy, xz, vx, vy, vz] = out;
+    [xx[c], xy[c], xz[c]] = p;
+    [vx[c], vy[c], vz[c]] = u;
+}
+
 /// The air pass of a substep, before the bands: the old state as whole-cloth arrays (with
 /// position Verlet's drift `p + ½h·v` when `drift` is `Some(½h)`, as the reference evaluates
 /// its forces there), then the air force / 3 of both triangles of every cell
@@ -573,28 +586,34 @@ fn air_forces(
     {
         let [xx, xy, xz] = &mut *x;
         let [vx, vy, vz] = &mut *v;
-        for s in 0..rows {
-            let lo = s * cols;
-            for c in 0..cols {
-                let (p, u) = match *src {
+        xx.par_chunks_mut(cols)
+            .zip(xy.par_chunks_mut(cols))
+            .zip(xz.par_chunks_mut(cols))
+            .zip(vx.par_chunks_mut(cols))
+            .zip(vy.par_chunks_mut(cols))
+            .zip(vz.par_chunks_mut(cols))
+            .enumerate()
+            .for_each(|(s, (((((xx, xy), xz), vx), vy), vz))| {
+                let mut out = [xx, xy, xz, vx, vy, vz];
+                match *src {
                     Source::Particles(position, velocity) => {
-                        (position[lo + c].to_array(), velocity[lo + c].to_array())
+                        let (ps, us) =
+                            (&position[s * cols..][..cols], &velocity[s * cols..][..cols]);
+                        for c in 0..cols {
+                            let (p, u) = (ps[c].to_array(), us[c].to_array());
+                            gather_one(&mut out, c, p, u, drift);
+                        }
                     }
                     Source::Rows(all) => {
                         let row = &all[6 * cols * s..][..6 * cols];
-                        let at = |k: usize| row[k * cols + c];
-                        ([at(0), at(1), at(2)], [at(3), at(4), at(5)])
+                        for c in 0..cols {
+                            let at = |k: usize| row[k * cols + c];
+                            let (p, u) = ([at(0), at(1), at(2)], [at(3), at(4), at(5)]);
+                            gather_one(&mut out, c, p, u, drift);
+                        }
                     }
-                };
-                // `p + ½h·v` per component, as glam computes it for `Vec3`.
-                let p = match drift {
-                    Some(half) => [p[0] + half * u[0], p[1] + half * u[1], p[2] + half * u[2]],
-                    None => p,
-                };
-                [xx[lo + c], xy[lo + c], xz[lo + c]] = p;
-                [vx[lo + c], vy[lo + c], vz[lo + c]] = u;
-            }
-        }
+                }
+            });
     }
     let len = (rows - 1) * (cols + 1);
     for a in tri.iter_mut().flatten() {
