@@ -271,9 +271,8 @@ fn row_avx512(
 /// with `kernel` (the stepping thread's choice, passed on to the pool's workers).
 pub(crate) fn xpbd_air(
     kernel: Kernel,
-    x: &[Vec<f32>; 3],
-    v: &[Vec<f32>; 3],
-    i0: usize,
+    top: [&[f32]; 6],
+    bottom: [&[f32]; 6],
     cols: usize,
     k: &AirCoefficients,
     out: [[&mut [f32]; 3]; 2],
@@ -282,39 +281,37 @@ pub(crate) fn xpbd_air(
         #[cfg(target_arch = "x86_64")]
         Kernel::Avx512 if Kernel::Avx512.is_available() => {
             // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { air_avx512(x, v, i0, cols, k, out) }
+            unsafe { air_avx512(top, bottom, cols, k, out) }
         }
         #[cfg(target_arch = "x86_64")]
         Kernel::Avx2 if Kernel::Avx2.is_available() => {
             // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { air_avx2(x, v, i0, cols, k, out) }
+            unsafe { air_avx2(top, bottom, cols, k, out) }
         }
-        _ => grid_xpbd::air_row(x, v, i0, cols, k, out),
+        _ => grid_xpbd::air_row(top, bottom, cols, k, out),
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn air_avx2(
-    x: &[Vec<f32>; 3],
-    v: &[Vec<f32>; 3],
-    i0: usize,
+    top: [&[f32]; 6],
+    bottom: [&[f32]; 6],
     cols: usize,
     k: &AirCoefficients,
     out: [[&mut [f32]; 3]; 2],
 ) {
-    grid_xpbd::air_row(x, v, i0, cols, k, out);
+    grid_xpbd::air_row(top, bottom, cols, k, out);
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
 fn air_avx512(
-    x: &[Vec<f32>; 3],
-    v: &[Vec<f32>; 3],
-    i0: usize,
+    top: [&[f32]; 6],
+    bottom: [&[f32]; 6],
     cols: usize,
     k: &AirCoefficients,
     out: [[&mut [f32]; 3]; 2],
 ) {
-    grid_xpbd::air_row(x, v, i0, cols, k, out);
+    grid_xpbd::air_row(top, bottom, cols, k, out);
 }

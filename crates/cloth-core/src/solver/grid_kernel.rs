@@ -23,10 +23,10 @@
 //!    ([`ccd_mask_soa`]); only candidates (and other colliders) take the per-particle code.
 //!    Chunks of particles clear of every collider skip both.
 //!
-//! With air on, a pass before the bands computes the air force of every triangle from the
-//! old state (the reference's per-triangle operations, shared with XPBD's grid path) into
-//! rows of cells, and each particle adds its (up to six) triangles' shares after its spring
-//! terms, in the reference's triangle order.
+//! With air on, each band also computes the air force of both triangles of every cell between
+//! ring rows `s` and `s+1` (the reference's per-triangle operations, shared with XPBD's grid
+//! path) into a ring of two cell rows, and each particle adds its (up to six) triangles'
+//! shares after its spring terms, in the reference's triangle order.
 //!
 //! Absent neighbours (grid edges, switched-off kinds) contribute a signed zero that is an
 //! exact identity: `x + (−0.0) == x` and `x − (+0.0) == x` for every `x`, so the padding of
@@ -135,14 +135,6 @@ pub(crate) struct GridScratch {
     /// `rows` holds the current state and the particles' positions and velocities are
     /// stale.
     resident: bool,
-    /// Air (when on): the old state as whole-cloth structure of arrays (position Verlet's
-    /// drift applied), the input of [`crate::simd::xpbd_air`].
-    air_x: [Vec<f32>; 3],
-    air_v: [Vec<f32>; 3],
-    /// The air force / 3 of the two triangles of every cell by triangle and component: a
-    /// row of `cols + 1` per cell row, cell `c` at `1 + c`, −0.0 in the first and last slot
-    /// (the terms of absent triangles).
-    air_tri: [[Vec<f32>; 3]; 2],
     /// Rows of +0.0 and −0.0 (`cols + 2·PAD`), the terms of absent neighbours.
     plus_zero: Vec<f32>,
     minus_zero: Vec<f32>,
@@ -158,6 +150,10 @@ pub(crate) struct Band {
     force: [[[Vec<f32>; 3]; 3]; 6],
     /// The new state of the current row, by component: x, y, z, vx, vy, vz.
     out: [Vec<f32>; 6],
+    /// Air: the force / 3 of both triangles of the cells between rows `r` and `r + 1`, by
+    /// ring slot `r % 2`, triangle and component; cell `c` at `1 + c`, −0.0 in the first and
+    /// last of the `cols + 1` slots (the terms of absent triangles).
+    air: [[[Vec<f32>; 3]; 2]; 2],
     /// Particles of the current row the contact passes must see.
     near: Vec<bool>,
     /// The current row as `Vec3` for the per-particle contact passes: new positions and
@@ -183,6 +179,10 @@ impl Band {
         for a in &mut self.out {
             a.clear();
             a.resize(cols, 0.0);
+        }
+        for a in self.air.iter_mut().flatten().flatten() {
+            a.clear();
+            a.resize(cols + 1, -0.0);
         }
         self.near.clear();
         self.near.resize(cols, true);
@@ -252,10 +252,6 @@ impl GridScratch {
             && cols >= 2
             && load_rest(&mut self.rest, topology, rows, cols);
         self.key = Some((rows, cols, springs, ok));
-        // A new layout: the triangle rows are rebuilt with their −0.0 ends.
-        for a in self.air_tri.iter_mut().flatten() {
-            a.clear();
-        }
         if ok {
             let padded = cols + 2 * PAD;
             self.plus_zero.clear();
@@ -360,8 +356,8 @@ pub(crate) struct Job<'a> {
     damping: f32,
     /// Stiffness and damping per class, `None` when its kind contributes nothing.
     params: [Option<(f32, f32)>; 6],
-    /// The air's triangle forces ([`GridScratch::air_tri`]) when the air is on.
-    air: Option<&'a [[Vec<f32>; 3]; 2]>,
+    /// The air's coefficients when the air is on.
+    air: Option<super::grid_xpbd::AirCoefficients>,
     /// The old state.
     src: Source<'a>,
     mass: &'a [f32],
@@ -449,20 +445,6 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
     } else {
         Source::Particles(&p.position, &p.velocity)
     };
-    let air = sw.air && air_active(config);
-    if air {
-        let drift = (plan.scheme == Scheme::Verlet).then_some(0.5 * ctx.h);
-        let coeff = super::grid_xpbd::AirCoefficients::of(config, ctx.wind);
-        air_forces(
-            plan.kernel,
-            &src,
-            (rows, cols),
-            drift,
-            &coeff,
-            (&mut scratch.air_x, &mut scratch.air_v),
-            &mut scratch.air_tri,
-        );
-    }
     let job = Job {
         rows,
         cols,
@@ -475,7 +457,8 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         },
         damping: if sw.damping { config.damping } else { 0.0 },
         params,
-        air: air.then_some(&scratch.air_tri),
+        air: (sw.air && air_active(config))
+            .then(|| super::grid_xpbd::AirCoefficients::of(config, ctx.wind)),
         src,
         mass: &p.mass,
         inv_mass: &p.inv_mass,
@@ -550,101 +533,6 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         ctx.contacts.ccd += result.ccd;
     }
     true
-}
-
-/// Writes particle `c`'s position (with `p + ½h·v` per component, as glam computes it for
-/// `Vec3`, when `drift` is `Some(½h)`) and velocity into the six gathered rows.
-#[inline(always)]
-fn gather_one(out: &mut [&mut [f32]; 6], c: usize, p: [f32; 3], u: [f32; 3], drift: Option<f32>) {
-    let p = match drift {
-        Some(half) => [p[0] + half * u[0], p[1] + half * u[1], p[2] + half * u[2]],
-        None => p,
-    };
-    let [xx, xy, xz, vx, vy, vz] = out;
-    [xx[c], xy[c], xz[c]] = p;
-    [vx[c], vy[c], vz[c]] = u;
-}
-
-/// The air pass of a substep, before the bands: the old state as whole-cloth arrays (with
-/// position Verlet's drift `p + ½h·v` when `drift` is `Some(½h)`, as the reference evaluates
-/// its forces there), then the air force / 3 of both triangles of every cell
-/// ([`simd::xpbd_air`] with `kernel`, the reference's operations), cell rows in parallel, into
-/// `tri` ([`GridScratch::air_tri`]).
-fn air_forces(
-    kernel: Kernel,
-    src: &Source<'_>,
-    (rows, cols): (usize, usize),
-    drift: Option<f32>,
-    coeff: &super::grid_xpbd::AirCoefficients,
-    (x, v): (&mut [Vec<f32>; 3], &mut [Vec<f32>; 3]),
-    tri: &mut [[Vec<f32>; 3]; 2],
-) {
-    let n = rows * cols;
-    for a in x.iter_mut().chain(v.iter_mut()) {
-        a.resize(n, 0.0);
-    }
-    {
-        let [xx, xy, xz] = &mut *x;
-        let [vx, vy, vz] = &mut *v;
-        xx.par_chunks_mut(cols)
-            .zip(xy.par_chunks_mut(cols))
-            .zip(xz.par_chunks_mut(cols))
-            .zip(vx.par_chunks_mut(cols))
-            .zip(vy.par_chunks_mut(cols))
-            .zip(vz.par_chunks_mut(cols))
-            .enumerate()
-            .for_each(|(s, (((((xx, xy), xz), vx), vy), vz))| {
-                let mut out = [xx, xy, xz, vx, vy, vz];
-                match *src {
-                    Source::Particles(position, velocity) => {
-                        let (ps, us) =
-                            (&position[s * cols..][..cols], &velocity[s * cols..][..cols]);
-                        for c in 0..cols {
-                            let (p, u) = (ps[c].to_array(), us[c].to_array());
-                            gather_one(&mut out, c, p, u, drift);
-                        }
-                    }
-                    Source::Rows(all) => {
-                        let row = &all[6 * cols * s..][..6 * cols];
-                        for c in 0..cols {
-                            let at = |k: usize| row[k * cols + c];
-                            let (p, u) = ([at(0), at(1), at(2)], [at(3), at(4), at(5)]);
-                            gather_one(&mut out, c, p, u, drift);
-                        }
-                    }
-                }
-            });
-    }
-    let len = (rows - 1) * (cols + 1);
-    for a in tri.iter_mut().flatten() {
-        // Only the interior is written below: the ends keep their −0.0.
-        a.resize(len, -0.0);
-    }
-    let (x, v) = (&*x, &*v);
-    let [[ax, ay, az], [bx, by, bz]] = tri;
-    let w = cols + 1;
-    ax.par_chunks_mut(w)
-        .zip(ay.par_chunks_mut(w))
-        .zip(az.par_chunks_mut(w))
-        .zip(bx.par_chunks_mut(w))
-        .zip(by.par_chunks_mut(w))
-        .zip(bz.par_chunks_mut(w))
-        .enumerate()
-        .for_each(|(r, (((((ax, ay), az), bx), by), bz))| {
-            let m = 1..cols;
-            simd::xpbd_air(
-                kernel,
-                x,
-                v,
-                r * cols,
-                cols,
-                coeff,
-                [
-                    [&mut ax[m.clone()], &mut ay[m.clone()], &mut az[m.clone()]],
-                    [&mut bx[m.clone()], &mut by[m.clone()], &mut bz[m]],
-                ],
-            );
-        });
 }
 
 /// Writes the state kept in the scratch's arrays (if any) back to the particles: at the end
@@ -759,6 +647,27 @@ pub(crate) fn band(
             for f in [fx, fy, fz] {
                 f[PAD + m..PAD + full].fill(back);
             }
+        }
+        // Air: the cells between rows s and s + 1, from the ring (drifted for Verlet, as the
+        // reference evaluates its forces there).
+        if let Some(coeff) = &job.air
+            && s + 1 < rows
+        {
+            let ring = |r: usize| -> [&[f32]; 6] {
+                let [x, y, z, vx, vy, vz] = &band.state[r % 3];
+                [x, y, z, vx, vy, vz]
+            };
+            let [[ax, ay, az], [bx, by, bz]] = &mut band.air[s % 2];
+            super::grid_xpbd::air_row(
+                ring(s),
+                ring(s + 1),
+                cols,
+                coeff,
+                [
+                    [&mut ax[1..cols], &mut ay[1..cols], &mut az[1..cols]],
+                    [&mut bx[1..cols], &mut by[1..cols], &mut bz[1..cols]],
+                ],
+            );
         }
         if s >= r0 {
             particle_row(job, s, band);
@@ -1431,10 +1340,10 @@ fn particle_row(job: &Job<'_>, s: usize, band: &mut Band) {
         // The air's terms in the reference's triangle order: cell (s−1, c−1)'s second
         // triangle, cell (s−1, c)'s two, cell (s, c−1)'s two, cell (s, c)'s first (a cell row
         // holds cell c at 1 + c, −0.0 at both ends; absent cell rows are −0.0).
-        let air = job.air.map(|tri| {
+        let air = job.air.is_some().then(|| {
             let cells = |r: Option<usize>, k: usize| -> &[f32] {
                 match r {
-                    Some(r) if r + 1 < rows => &tri[k][comp][r * (cols + 1)..][..cols + 1],
+                    Some(r) if r + 1 < rows => &band.air[r % 2][k][comp],
                     _ => job.minus_zero,
                 }
             };

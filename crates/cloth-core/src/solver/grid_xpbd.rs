@@ -234,11 +234,21 @@ impl XpbdGrid {
                 .zip(bz.par_chunks_mut(m))
                 .enumerate()
                 .for_each(|(r, (((((ax, ay), az), bx), by), bz))| {
+                    let at = |r: usize| {
+                        let i = r * cols..(r + 1) * cols;
+                        [
+                            &x[0][i.clone()],
+                            &x[1][i.clone()],
+                            &x[2][i.clone()],
+                            &v[0][i.clone()],
+                            &v[1][i.clone()],
+                            &v[2][i],
+                        ]
+                    };
                     crate::simd::xpbd_air(
                         kernel,
-                        x,
-                        v,
-                        r * cols,
+                        at(r),
+                        at(r + 1),
                         cols,
                         &coeff,
                         [[ax, ay, az], [bx, by, bz]],
@@ -686,6 +696,7 @@ fn scatter(v: &[Vec3], out: &mut [Vec<f32>; 3]) {
 }
 
 /// The air's parameters for [`air_row`].
+#[derive(Debug, Clone, Copy)]
 pub(crate) struct AirCoefficients {
     density: f32,
     drag: f32,
@@ -706,31 +717,31 @@ impl AirCoefficients {
     }
 }
 
-/// The air force (divided by 3) of both triangles of every cell of the cell row whose first
-/// particle is `i0`: [`crate::forces::triangle_air_force`] with the same operations in the
-/// same order (so the same bits), as a loop over shifted rows that the compiler vectorises.
+/// The air force (divided by 3) of both triangles of every cell between particle rows `top`
+/// and `bottom` (x, y, z, vx, vy, vz, at least `cols` each):
+/// [`crate::forces::triangle_air_force`] with the same operations in the same order (so the
+/// same bits), as a loop over shifted rows that the compiler vectorises.
 #[inline(always)]
 pub(crate) fn air_row(
-    x: &[Vec<f32>; 3],
-    v: &[Vec<f32>; 3],
-    i0: usize,
+    top: [&[f32]; 6],
+    bottom: [&[f32]; 6],
     cols: usize,
     k: &AirCoefficients,
     out: [[&mut [f32]; 3]; 2],
 ) {
     let m = cols - 1;
-    fn row(a: &[Vec<f32>; 3], start: usize, m: usize) -> [&[f32]; 3] {
+    fn row<'a>(a: &[&'a [f32]; 6], first: usize, start: usize, m: usize) -> [&'a [f32]; 3] {
         [
-            &a[0][start..start + m],
-            &a[1][start..start + m],
-            &a[2][start..start + m],
+            &a[first][start..start + m],
+            &a[first + 1][start..start + m],
+            &a[first + 2][start..start + m],
         ]
     }
     // Corners: p = (r, c), q = (r, c + 1), s = (r + 1, c), t = (r + 1, c + 1).
-    let (xp, xq) = (row(x, i0, m), row(x, i0 + 1, m));
-    let (xs, xt) = (row(x, i0 + cols, m), row(x, i0 + cols + 1, m));
-    let (vp, vq) = (row(v, i0, m), row(v, i0 + 1, m));
-    let (vs, vt) = (row(v, i0 + cols, m), row(v, i0 + cols + 1, m));
+    let (xp, xq) = (row(&top, 0, 0, m), row(&top, 0, 1, m));
+    let (xs, xt) = (row(&bottom, 0, 0, m), row(&bottom, 0, 1, m));
+    let (vp, vq) = (row(&top, 3, 0, m), row(&top, 3, 1, m));
+    let (vs, vt) = (row(&bottom, 3, 0, m), row(&bottom, 3, 1, m));
     let [[ax, ay, az], [bx, by, bz]] = out;
     let (ax, ay, az, bx, by, bz) = (
         &mut ax[..m],
