@@ -267,8 +267,9 @@ fn row_avx512(
     grid_xpbd::row(x, corr, shared, g0, s, lambda, mask);
 }
 
-/// The air forces of one cell row of the grid paths (XPBD's and the explicit integrators'),
-/// with `kernel` (the stepping thread's choice, passed on to the pool's workers).
+/// The air forces of one cell row of XPBD's grid path, with `kernel` (the stepping thread's
+/// choice, passed on to the pool's workers). (The explicit integrators' bands call
+/// [`grid_xpbd::air_row`] inside their own kernel.)
 pub(crate) fn xpbd_air(
     kernel: Kernel,
     top: [&[f32]; 6],

@@ -13,7 +13,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use cloth_core::glam::Vec3;
-use cloth_core::{Integrator, SelfCollision, presets};
+use cloth_core::{Integrator, SelfCollision, Simulation, presets};
 
 struct Counting;
 
@@ -66,6 +66,29 @@ static GLOBAL: Counting = Counting;
 /// The tests of this file run one at a time: the counter is global.
 static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
+/// Two warm-up steps, then 20 steps moving pin 0, which must not allocate. Run on a thread of
+/// the pool that steps (a parallel loop started from a thread outside the pool hands rayon a
+/// job through its global queue, which allocates one block per 63 jobs: rayon's amortised
+/// allocation, not the step's).
+fn assert_steps_do_not_allocate(sim: &mut Simulation, what: &str) {
+    for _ in 0..2 {
+        sim.step().expect("warm-up");
+    }
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    for k in 0..20 {
+        sim.set_pin_target(0, Vec3::new(-0.6, 0.55 + 0.01 * k as f32, -0.6))
+            .expect("target");
+        sim.step().expect("step");
+    }
+    let after = ALLOCATIONS.load(Ordering::Relaxed);
+    assert_eq!(
+        after - before,
+        0,
+        "{what} allocated {} times in 20 steps",
+        after - before
+    );
+}
+
 #[test]
 fn steps_after_the_first_do_not_allocate() {
     let _serial = SERIAL
@@ -80,27 +103,8 @@ fn steps_after_the_first_do_not_allocate() {
         config.strain_limit = Some(0.2);
         sim.set_config(config).expect("config");
         sim.pin(0).expect("pin");
-        // Inside the global pool (as `cloth sim` steps): a parallel loop started from a
-        // thread outside the pool hands rayon a job through its global queue, which
-        // allocates one block per 63 jobs (rayon's amortised allocation, not the step's).
-        rayon::scope(|_| {
-            for _ in 0..2 {
-                sim.step().expect("warm-up");
-            }
-            let before = ALLOCATIONS.load(Ordering::Relaxed);
-            for k in 0..20 {
-                sim.set_pin_target(0, Vec3::new(-0.6, 0.55 + 0.01 * k as f32, -0.6))
-                    .expect("target");
-                sim.step().expect("step");
-            }
-            let after = ALLOCATIONS.load(Ordering::Relaxed);
-            assert_eq!(
-                after - before,
-                0,
-                "{integrator:?} allocated {} times in 20 steps",
-                after - before
-            );
-        });
+        // Inside the global pool, as `cloth sim` steps.
+        rayon::scope(|_| assert_steps_do_not_allocate(&mut sim, &format!("{integrator:?}")));
     }
 }
 
@@ -137,22 +141,7 @@ fn threaded_fast_path_steps_do_not_allocate() {
                 cloth_core::simd::kernel_for(&sim),
                 cloth_core::simd::Kernel::Reference
             );
-            for _ in 0..2 {
-                sim.step().expect("warm-up");
-            }
-            let before = ALLOCATIONS.load(Ordering::Relaxed);
-            for k in 0..20 {
-                sim.set_pin_target(0, Vec3::new(-0.6, 0.55 + 0.01 * k as f32, -0.6))
-                    .expect("target");
-                sim.step().expect("step");
-            }
-            let after = ALLOCATIONS.load(Ordering::Relaxed);
-            assert_eq!(
-                after - before,
-                0,
-                "{integrator:?} on 2 threads allocated {} times in 20 steps",
-                after - before
-            );
+            assert_steps_do_not_allocate(&mut sim, &format!("{integrator:?} on 2 threads"));
         });
     }
 }

@@ -457,8 +457,7 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         },
         damping: if sw.damping { config.damping } else { 0.0 },
         params,
-        air: (sw.air && air_active(config))
-            .then(|| super::grid_xpbd::AirCoefficients::of(config, ctx.wind)),
+        air: air_active(config).then(|| super::grid_xpbd::AirCoefficients::of(config, ctx.wind)),
         src,
         mass: &p.mass,
         inv_mass: &p.inv_mass,
@@ -649,8 +648,9 @@ pub(crate) fn band(
             }
         }
         // Air: the cells between rows s and s + 1, from the ring (drifted for Verlet, as the
-        // reference evaluates its forces there).
+        // reference evaluates its forces there); the band's rows need cell rows r0 − 1 on.
         if let Some(coeff) = &job.air
+            && s + 1 >= r0
             && s + 1 < rows
         {
             let ring = |r: usize| -> [&[f32]; 6] {

@@ -213,7 +213,7 @@ impl XpbdGrid {
         let sw = cfg.forces;
         let gravity = if sw.gravity { cfg.gravity } else { Vec3::ZERO };
         let damping = if sw.damping { cfg.damping } else { 0.0 };
-        let air = sw.air && super::grid_kernel::air_active(cfg);
+        let air = super::grid_kernel::air_active(cfg);
         let p = &mut *ctx.particles;
         start.resize(p.len(), Vec3::ZERO);
         if air {
