@@ -310,6 +310,14 @@ pub struct XpbdSettings {
     /// Extra length allowed by the strain limits, as a fraction of the rest distance, `>= 0`.
     /// Default 0.02.
     pub hierarchy_slack: f32,
+    /// Solve the warp and weft springs of a grid cloth **chain by chain** (every column's warp
+    /// springs, then every row's weft springs), each chain's multipliers together by a
+    /// tridiagonal solve, instead of spring by spring. A pull then crosses the whole cloth in
+    /// one sweep, so a hanging or draped cloth stops stretching with few substeps; the
+    /// constraints and their compliance are the same. The structural springs are then solved
+    /// last in each sweep (after shear and bend), so a sweep ends with them satisfied.
+    /// Default `false`. Ignored on a cloth that is not a grid.
+    pub chains: bool,
 }
 
 impl Default for XpbdSettings {
@@ -320,6 +328,7 @@ impl Default for XpbdSettings {
             tether_slack: 0.02,
             hierarchy_levels: 0,
             hierarchy_slack: 0.02,
+            chains: false,
         }
     }
 }

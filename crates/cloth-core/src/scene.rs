@@ -607,6 +607,8 @@ pub struct XpbdDesc {
     pub hierarchy_levels: u32,
     #[serde(default = "d_hslack")]
     pub hierarchy_slack: f32,
+    #[serde(default)]
+    pub chains: bool,
 }
 fn d_hslack() -> f32 {
     XpbdSettings::default().hierarchy_slack
@@ -625,6 +627,7 @@ impl Default for XpbdDesc {
             tether_slack: d_slack(),
             hierarchy_levels: 0,
             hierarchy_slack: d_hslack(),
+            chains: false,
         }
     }
 }
@@ -1210,6 +1213,7 @@ impl Scene {
             tether_slack: s.xpbd.tether_slack,
             hierarchy_levels: s.xpbd.hierarchy_levels,
             hierarchy_slack: s.xpbd.hierarchy_slack,
+            chains: s.xpbd.chains,
         };
         config
     }
@@ -1454,6 +1458,7 @@ const KNOWN_KEYS: &[&str] = &[
     "tether_slack",
     "hierarchy_levels",
     "hierarchy_slack",
+    "chains",
     "max_stretch_ratio",
     "max_speed",
     "eye",
@@ -1704,6 +1709,7 @@ impl Scene {
                 tether_slack: c.xpbd.tether_slack,
                 hierarchy_levels: c.xpbd.hierarchy_levels,
                 hierarchy_slack: c.xpbd.hierarchy_slack,
+                chains: c.xpbd.chains,
             },
             limits: LimitsDesc {
                 max_stretch_ratio: c.limits.max_stretch_ratio,

@@ -16,6 +16,7 @@
 use std::cell::Cell;
 
 use crate::error::{ClothError, Result};
+use crate::solver::chains;
 use crate::solver::grid_kernel::{self, Band, BandResult, Dest, Job};
 use crate::solver::grid_xpbd::{self, AirCoefficients, Shared};
 
@@ -315,4 +316,40 @@ fn air_avx512(
     out: [[&mut [f32]; 3]; 2],
 ) {
     grid_xpbd::air_row(top, bottom, cols, k, out);
+}
+
+/// One block of XPBD's chain solves ([`chains::solve`] at [`chains::LANES`] lanes), with
+/// `kernel` (the stepping thread's choice, passed on to the pool's workers).
+pub(crate) fn xpbd_chains(
+    kernel: Kernel,
+    block: chains::Block<'_>,
+    len: usize,
+    alpha: f32,
+    gamma: f32,
+) {
+    match kernel {
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx512 if Kernel::Avx512.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { chains_avx512(block, len, alpha, gamma) }
+        }
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 if Kernel::Avx2.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { chains_avx2(block, len, alpha, gamma) }
+        }
+        _ => chains::solve::<{ chains::LANES }>(block, len, alpha, gamma),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn chains_avx2(block: chains::Block<'_>, len: usize, alpha: f32, gamma: f32) {
+    chains::solve::<{ chains::LANES }>(block, len, alpha, gamma);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+fn chains_avx512(block: chains::Block<'_>, len: usize, alpha: f32, gamma: f32) {
+    chains::solve::<{ chains::LANES }>(block, len, alpha, gamma);
 }

@@ -101,6 +101,8 @@ fn steps_after_the_first_do_not_allocate() {
         config.self_collision = Some(SelfCollision::default());
         config.air.wind = Vec3::new(1.0, 0.0, 0.0);
         config.strain_limit = Some(0.2);
+        // XPBD's reference path with its chain solves.
+        config.xpbd.chains = true;
         sim.set_config(config).expect("config");
         sim.pin(0).expect("pin");
         // Inside the global pool, as `cloth sim` steps.
@@ -109,8 +111,9 @@ fn steps_after_the_first_do_not_allocate() {
 }
 
 /// The explicit integrators' grid fast path and XPBD's grid path (strain limits on), with
-/// the drape's air, on a pool of 2 threads: still no allocation after the first step (the bands'
-/// buffers, the next-state arrays and the grid XPBD scratch are kept).
+/// the drape's air, on a pool of 2 threads, with and without XPBD's chain solves: still no
+/// allocation after the first step (the bands' buffers, the next-state arrays and the grid
+/// XPBD scratch, chain blocks included, are kept).
 #[test]
 fn threaded_fast_path_steps_do_not_allocate() {
     let _serial = SERIAL
@@ -122,12 +125,17 @@ fn threaded_fast_path_steps_do_not_allocate() {
         .start_handler(|_| TRACKED.with(|t| t.set(true)))
         .build()
         .expect("pool");
-    for integrator in Integrator::EXPLICIT.into_iter().chain([Integrator::Xpbd]) {
+    let runs = Integrator::EXPLICIT
+        .into_iter()
+        .map(|i| (i, false))
+        .chain([(Integrator::Xpbd, false), (Integrator::Xpbd, true)]);
+    for (integrator, chains) in runs {
         let mut sim = presets::drape(32, integrator).expect("drape");
         let mut config = *sim.config();
         if integrator == Integrator::Xpbd {
             config.xpbd.hierarchy_levels = 3;
             config.xpbd.tethers = false;
+            config.xpbd.chains = chains;
         }
         config.air.wind = Vec3::new(1.0, 0.0, 0.5);
         if integrator == Integrator::ForwardEuler {
@@ -141,7 +149,10 @@ fn threaded_fast_path_steps_do_not_allocate() {
                 cloth_core::simd::kernel_for(&sim),
                 cloth_core::simd::Kernel::Reference
             );
-            assert_steps_do_not_allocate(&mut sim, &format!("{integrator:?} on 2 threads"));
+            assert_steps_do_not_allocate(
+                &mut sim,
+                &format!("{integrator:?} (chains {chains}) on 2 threads"),
+            );
         });
     }
 }

@@ -21,7 +21,9 @@
 //!
 //! 1. warp, weft, diagonal, anti-diagonal, vertical bend, horizontal bend, each colour 0
 //!    then colour 1, as compliant XPBD constraints (the reference's formula: compliance
-//!    α = 1/k, dashpot as constraint damping);
+//!    α = 1/k, dashpot as constraint damping); with `XpbdSettings::chains`, shear and bend
+//!    first and then the warp and the weft as whole chains ([`super::chains`]: every column,
+//!    then every row, each solved exactly by a tridiagonal solve, in blocks of 16 chains);
 //! 2. the multi-resolution strain limits, when `XpbdSettings::hierarchy_levels > 0` (after
 //!    Wang, O'Brien & Ramamoorthi 2010, "Multi-resolution isotropic strain limiting"): for
 //!    each spacing s = 2, 4, …, 2^levels, particles `s` apart along the warp and along the
@@ -100,6 +102,8 @@ pub(crate) struct XpbdGrid {
     air: [[Vec<f32>; 3]; 2],
     /// Velocities (structure of arrays), for the air force.
     vel: [Vec<f32>; 3],
+    /// Blocks of the chain solves (`XpbdSettings::chains`): warp (columns), weft (rows).
+    chains: [Vec<f32>; 2],
 }
 
 /// Whether the grid path runs XPBD's sweeps for these settings: a cloth built by the grid
@@ -165,6 +169,11 @@ impl XpbdGrid {
             }
         }
         ok
+    }
+
+    /// Rest lengths of a class by slot (after a successful [`Self::prepare`]).
+    pub(crate) fn class_rest(&self, class: usize) -> &[f32] {
+        &self.rest[class]
     }
 
     /// Builds the multi-resolution strain limits from the rest shape when their settings
@@ -333,8 +342,22 @@ impl XpbdGrid {
 
         let mut contacts = 0;
         for _ in 0..settings.iterations {
-            for (class, mode) in modes.iter().enumerate() {
-                let Some(mode) = *mode else { continue };
+            // With chains the structural springs go last (after shear and bend): the stiffest
+            // constraints, solved exactly per chain, end the sweep.
+            let order: [usize; 6] = if settings.chains {
+                [2, 3, 4, 5, 0, 1]
+            } else {
+                [0, 1, 2, 3, 4, 5]
+            };
+            for class in order {
+                let Some(mode) = modes[class] else { continue };
+                if settings.chains
+                    && class < 2
+                    && let Mode::Compliant { alpha, gamma } = mode
+                {
+                    self.chains(class, alpha, gamma);
+                    continue;
+                }
                 let (dr, a_dc, b_dc, _) = CLASSES[class];
                 for colour in 0..2 {
                     if dr == 0 {
@@ -378,6 +401,80 @@ impl XpbdGrid {
                 }
             });
         contacts
+    }
+
+    /// The chain solves of the warp (`class` 0, one chain per column) or of the weft
+    /// (`class` 1, one per row), see [`super::chains`]: blocks of [`chains::LANES`] chains
+    /// gathered, solved and scattered back, blocks in parallel (each block's chains are
+    /// independent of the others', so any thread count gives the same bits).
+    fn chains(&mut self, class: usize, alpha: f32, gamma: f32) {
+        use super::chains::{self, Block, FIELDS, LANES};
+        let (rows, cols) = (self.rows, self.cols);
+        let (count, len) = chains::shape(class, rows, cols);
+        let size = len * LANES;
+        let blocks = count.div_ceil(LANES);
+        let kernel = crate::simd::kernel();
+        let scratch = &mut self.chains[class];
+        if scratch.len() != blocks * FIELDS * size {
+            scratch.clear();
+            scratch.resize(blocks * FIELDS * size, 0.0);
+        }
+        let [x, y, z] = &self.pos;
+        let (prev, w, rest) = (&self.prev, &self.inv_mass, &self.rest[class]);
+        let lambda = self.keep.then_some(&self.lambda[class][..]);
+        scratch
+            .par_chunks_mut(FIELDS * size)
+            .enumerate()
+            .for_each(|(b, chunk)| {
+                let first = b * LANES;
+                chains::gather::<LANES>(
+                    chunk,
+                    len,
+                    (class, cols),
+                    (first, LANES.min(count - first)),
+                    [x, y, z],
+                    [&prev[0], &prev[1], &prev[2]],
+                    w,
+                    rest,
+                    lambda,
+                );
+                crate::simd::xpbd_chains(kernel, Block::split(chunk, size), len, alpha, gamma);
+            });
+        let scratch = &self.chains[class];
+        let keep = self.keep;
+        let [x, y, z] = &mut self.pos;
+        let lambda = &mut self.lambda[class];
+        // Fields 0, 1, 2 (positions) and 8 (multipliers) back into the rows: by row for the
+        // warp, by block of rows for the weft.
+        let rows_per = if class == 0 { 1 } else { LANES };
+        x.par_chunks_mut(rows_per * cols)
+            .zip(y.par_chunks_mut(rows_per * cols))
+            .zip(z.par_chunks_mut(rows_per * cols))
+            .zip(lambda.par_chunks_mut(rows_per * cols))
+            .enumerate()
+            .for_each(|(i, (((x, y), z), lam))| {
+                let mut dst = [x, y, z, lam];
+                let fields = if keep { 4 } else { 3 };
+                for (f, dst) in dst.iter_mut().take(fields).enumerate() {
+                    let field = if f == 3 { 8 } else { f };
+                    if class == 0 {
+                        for (b, block) in scratch.chunks_exact(FIELDS * size).enumerate() {
+                            let first = b * LANES;
+                            let lanes = LANES.min(count - first);
+                            let src = &block[field * size + i * LANES..][..lanes];
+                            dst[first..first + lanes].copy_from_slice(src);
+                        }
+                    } else {
+                        let block = &scratch[i * FIELDS * size..][..FIELDS * size];
+                        let src = &block[field * size..][..size];
+                        for (lane, row) in dst.chunks_exact_mut(cols).enumerate() {
+                            for (k, v) in row.iter_mut().enumerate() {
+                                *v = src[k * LANES + lane];
+                            }
+                        }
+                    }
+                }
+            });
     }
 
     /// The multipliers of a pass, taken out of the scratch for the pass (limits get a spare

@@ -5,6 +5,7 @@
 //! responsible for the whole substep (forces, integration, contacts), so that solvers that do
 //! not fit "forces then integrate" (implicit, constraint-based) plug in the same way.
 
+pub(crate) mod chains;
 mod explicit;
 pub(crate) mod grid_kernel;
 pub(crate) mod grid_xpbd;

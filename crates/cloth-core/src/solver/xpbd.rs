@@ -7,8 +7,10 @@
 //! 2. `iterations` Gauss–Seidel sweeps, each over: every spring as a distance constraint
 //!    C = |x_a − x_b| − L0 with compliance α = 1/k (so a material gives the same cloth as with
 //!    the force-based integrators) and the dashpot as XPBD constraint damping β = c, in the
-//!    fixed storage order (kind by kind, row-major); then the optional long-range tethers; then
-//!    collider contacts as position constraints with position-level Coulomb friction;
+//!    fixed storage order (kind by kind, row-major) — with `XpbdSettings::chains` on a grid,
+//!    shear and bend first and then the warp and weft as whole chains ([`super::chains`]);
+//!    then the optional long-range tethers; then collider contacts as position constraints
+//!    with position-level Coulomb friction;
 //! 3. velocities from positions: v ← (x − x_prev)/h.
 //!
 //! The sweep order is fixed, so results are deterministic. Springs of one kind on a grid
@@ -44,6 +46,10 @@ pub(crate) struct XpbdScratch {
     limits_key: Option<(u32, u32, usize)>,
     /// The grid path.
     pub(super) grid: super::grid_xpbd::XpbdGrid,
+    /// Multipliers of the chain solves (`XpbdSettings::chains`) by class (warp, weft) and
+    /// slot, and the one-chain scratch of the reference path.
+    chain_lambda: [Vec<f32>; 2],
+    chain_scratch: Vec<f32>,
 }
 
 impl XpbdScratch {
@@ -214,9 +220,16 @@ fn reference_sweeps(
     }
     sc.lambda.clear();
     sc.lambda.resize(ctx.topology.springs().len(), 0.0);
+    let chains = settings.chains && sc.grid.prepare(ctx.topology, ctx.particles.len());
+    if chains {
+        for l in &mut sc.chain_lambda {
+            l.clear();
+            l.resize(ctx.particles.len(), 0.0);
+        }
+    }
     let mut contacts = 0;
     for _ in 0..settings.iterations {
-        solve_springs(ctx, sc, h);
+        solve_springs(ctx, sc, h, chains);
         if settings.tethers {
             solve_tethers(&mut *ctx.particles, &sc.tethers);
         }
@@ -231,17 +244,54 @@ fn reference_sweeps(
     ctx.contacts.contacts = contacts;
 }
 
-fn solve_springs(ctx: &mut SubstepCtx<'_>, sc: &mut XpbdScratch, h: f32) {
+/// Every spring in storage order; with `chains`, the warp and the weft as chains instead
+/// ([`super::chains::solve_reference`]).
+fn solve_springs(ctx: &mut SubstepCtx<'_>, sc: &mut XpbdScratch, h: f32, chains: bool) {
     let cfg = ctx.config;
     let p = &mut *ctx.particles;
+    // Offsets of each kind's multipliers (the storage order).
+    let mut offsets = [0; 4];
     let mut offset = 0;
     for kind in SpringKind::ALL {
+        offsets[kind as usize] = offset;
+        offset += ctx.topology.springs_of(kind).len();
+    }
+    // With chains the structural springs go last (as on the grid path).
+    let order = if chains {
+        [
+            SpringKind::Shear,
+            SpringKind::Bend,
+            SpringKind::Warp,
+            SpringKind::Weft,
+        ]
+    } else {
+        SpringKind::ALL
+    };
+    for kind in order {
         let springs = ctx.topology.springs_of(kind);
+        let offset = offsets[kind as usize];
         let lambda = &mut sc.lambda[offset..offset + springs.len()];
-        offset += springs.len();
         let Some((alpha, gamma)) = compliance(cfg, kind, h) else {
             continue;
         };
+        if chains
+            && let Some((rows, cols)) = ctx.topology.grid()
+            && let Some(class) = [SpringKind::Warp, SpringKind::Weft]
+                .iter()
+                .position(|&k| k == kind)
+        {
+            super::chains::solve_reference(
+                p,
+                &sc.prev,
+                sc.grid.class_rest(class),
+                &mut sc.chain_lambda[class],
+                (rows, cols, class),
+                alpha,
+                gamma,
+                &mut sc.chain_scratch,
+            );
+            continue;
+        }
         for (s, lambda) in springs.iter().zip(lambda.iter_mut()) {
             let (a, b) = (s.a as usize, s.b as usize);
             let (wa, wb) = (p.inv_mass[a], p.inv_mass[b]);

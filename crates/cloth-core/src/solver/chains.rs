@@ -1,0 +1,304 @@
+//! XPBD's structural springs solved chain by chain (`XpbdSettings::chains`).
+//!
+//! On a grid cloth every warp spring belongs to one column, `(0, c)–(1, c)–…–(rows − 1, c)`,
+//! and every weft spring to one row: the structural springs form `cols + rows` chains. A
+//! Gauss–Seidel sweep projects the springs of a chain one at a time, so a pull travels one
+//! spring per sweep (a hanging cloth of n rows needs about n sweeps, or substeps, to stop
+//! stretching). Here the springs of a chain are projected **together**: XPBD's update of all
+//! the chain's multipliers at once,
+//!
+//! ```text
+//! ((1 + γ)·J W Jᵀ + α̃·I) Δλ = −C − α̃·λ − γ·J (x − x_prev),   Δx = W Jᵀ Δλ,
+//! ```
+//!
+//! with `J` the gradients of the chain's constraints `C_k = |x_{k+1} − x_k| − L_k` at the
+//! current positions, `W` the inverse masses, α̃ = 1/(k h²) and γ = c/(k h) as in the
+//! reference sweep ([`super::xpbd`]). Two constraints share a particle only with their
+//! neighbours in the chain, so the matrix is **tridiagonal**: diagonal
+//! `(1 + γ)(w_k + w_{k+1}) + α̃`, off-diagonal `−(1 + γ)·w_k·n_{k−1}·n_k` (the unit directions
+//! of the two springs at their shared particle `k`). It is symmetric positive definite
+//! (α̃ > 0), and one forward elimination and one back substitution (the Thomas algorithm)
+//! solve it exactly in O(length). A pull then crosses the whole chain in one projection: the
+//! chains are a block Gauss–Seidel whose blocks are whole rows and columns (all warp chains,
+//! then all weft chains), and a draped cloth reaches a small strain with few substeps.
+//!
+//! A chain of two particles (one spring) gives the reference's single-spring projection to
+//! the bit. A spring of zero length or between two pinned particles is left out of its chain
+//! (its multiplier does not change).
+//!
+//! The chains of one direction are independent. The grid path solves them in blocks of
+//! [`LANES`] chains laid out step-major (entry `(k, lane)` at `k·LANES + lane`), so every
+//! operation of the sweep runs across the lanes as one vector; the reference path solves one
+//! chain at a time with the same function at one lane, hence the same bits.
+
+/// Chains per block on the grid path: the lanes of the vectorised sweeps.
+pub(crate) const LANES: usize = 16;
+
+/// Arrays per block: x, y, z, start x, y, z, inverse mass, rest length, multiplier, direction
+/// x, y, z, the eliminated super-diagonal and right-hand side.
+pub(crate) const FIELDS: usize = 14;
+
+/// One block of `L` chains of `len` particles, step-major (entry `(k, lane)` at `k·L + lane`;
+/// the per-spring arrays use entries `k < len − 1`, spring `k` joining particles `k` and
+/// `k + 1`).
+pub(crate) struct Block<'a> {
+    /// Positions, advanced in place.
+    pub x: [&'a mut [f32]; 3],
+    /// Positions at the start of the substep.
+    pub prev: [&'a [f32]; 3],
+    /// Inverse masses.
+    pub w: &'a [f32],
+    /// Rest lengths.
+    pub rest: &'a [f32],
+    /// Multipliers, advanced in place.
+    pub lambda: &'a mut [f32],
+    /// Scratch: unit directions.
+    pub n: [&'a mut [f32]; 3],
+    /// Scratch: super-diagonal after elimination.
+    pub cp: &'a mut [f32],
+    /// Scratch: right-hand side after elimination.
+    pub dp: &'a mut [f32],
+}
+
+impl<'a> Block<'a> {
+    /// Splits a block of [`FIELDS`] arrays of `size` entries each.
+    pub(crate) fn split(chunk: &'a mut [f32], size: usize) -> Self {
+        let mut it = chunk.chunks_exact_mut(size);
+        let mut next = || it.next().expect("a block holds FIELDS arrays");
+        let x = [next(), next(), next()];
+        let prev = [&*next(), &*next(), &*next()];
+        let w = &*next();
+        let rest = &*next();
+        let lambda = next();
+        let n = [next(), next(), next()];
+        let cp = next();
+        let dp = next();
+        Self {
+            x,
+            prev,
+            w,
+            rest,
+            lambda,
+            n,
+            cp,
+            dp,
+        }
+    }
+}
+
+/// Solves the `L` chains of `len ≥ 2` particles of a block (see the module docs): one forward
+/// elimination (directions, constraint values, the tridiagonal matrix and its elimination,
+/// from the current positions), then one back substitution applying every multiplier's change
+/// to the positions. Plain IEEE `f32` (no fused multiply-add), the same for every lane count.
+#[inline(always)]
+pub(crate) fn solve<const L: usize>(block: Block<'_>, len: usize, alpha: f32, gamma: f32) {
+    let Block {
+        x,
+        prev,
+        w,
+        rest,
+        lambda,
+        mut n,
+        cp,
+        dp,
+    } = block;
+    debug_assert!(len >= 2);
+    let g1 = 1.0 + gamma;
+    let w = &w.as_chunks::<L>().0[..len];
+    let rest = &rest.as_chunks::<L>().0[..len];
+    let [px, py, pz] = prev.map(|a| &a.as_chunks::<L>().0[..len]);
+    {
+        let [xs, ys, zs] = x.each_ref().map(|a| &a.as_chunks::<L>().0[..len]);
+        let lam = &lambda.as_chunks::<L>().0[..len];
+        let [nx, ny, nz] = n.each_mut().map(|a| &mut a.as_chunks_mut::<L>().0[..len]);
+        let cp = &mut cp.as_chunks_mut::<L>().0[..len];
+        let dp = &mut dp.as_chunks_mut::<L>().0[..len];
+        // Carried from spring k − 1: its eliminated diagonal, right-hand side and direction.
+        let mut m_prev = [1.0_f32; L];
+        let mut dp_prev = [0.0_f32; L];
+        let mut n_prev = [[0.0_f32; L]; 3];
+        for k in 0..len - 1 {
+            let (a, b) = (k, k + 1);
+            let mut cp_prev = [0.0_f32; L];
+            for l in 0..L {
+                let (dx, dy, dz) = (
+                    xs[b][l] - xs[a][l],
+                    ys[b][l] - ys[a][l],
+                    zs[b][l] - zs[a][l],
+                );
+                let length = ((dx * dx) + (dy * dy) + (dz * dz)).sqrt();
+                let (wa, wb) = (w[a][l], w[b][l]);
+                let ws = wa + wb;
+                let active = length > 0.0 && ws > 0.0;
+                let (ex, ey, ez) = if active {
+                    (dx / length, dy / length, dz / length)
+                } else {
+                    (0.0, 0.0, 0.0)
+                };
+                let (vx, vy, vz) = (
+                    (xs[b][l] - px[b][l]) - (xs[a][l] - px[a][l]),
+                    (ys[b][l] - py[b][l]) - (ys[a][l] - py[a][l]),
+                    (zs[b][l] - pz[b][l]) - (zs[a][l] - pz[a][l]),
+                );
+                let rate = (ex * vx) + (ey * vy) + (ez * vz);
+                let constraint = length - rest[k][l];
+                let diag = if active { g1 * ws + alpha } else { 1.0 };
+                let rhs = if active {
+                    -constraint - alpha * lam[k][l] - gamma * rate
+                } else {
+                    0.0
+                };
+                // Coupling with spring k − 1 through particle k (zero for k = 0).
+                let cos = (n_prev[0][l] * ex) + (n_prev[1][l] * ey) + (n_prev[2][l] * ez);
+                let e = -(g1 * wa) * cos;
+                let c = e / m_prev[l];
+                let m = diag - e * c;
+                let d = (rhs - e * dp_prev[l]) / m;
+                cp_prev[l] = c;
+                m_prev[l] = m;
+                dp_prev[l] = d;
+                dp[k][l] = d;
+                (nx[k][l], ny[k][l], nz[k][l]) = (ex, ey, ez);
+                (n_prev[0][l], n_prev[1][l], n_prev[2][l]) = (ex, ey, ez);
+            }
+            if k > 0 {
+                cp[k - 1] = cp_prev;
+            }
+        }
+        cp[len - 2] = [0.0; L];
+    }
+    let [xs, ys, zs] = x.map(|a| &mut a.as_chunks_mut::<L>().0[..len]);
+    let lam = &mut lambda.as_chunks_mut::<L>().0[..len];
+    let [nx, ny, nz] = n.map(|a| &a.as_chunks::<L>().0[..len]);
+    let (cp, dp) = (&cp.as_chunks::<L>().0[..len], &dp.as_chunks::<L>().0[..len]);
+    let mut dl_next = [0.0_f32; L];
+    let mut n_next = [[0.0_f32; L]; 3];
+    for k in (0..len - 1).rev() {
+        let b = k + 1;
+        for l in 0..L {
+            let dl = dp[k][l] - cp[k][l] * dl_next[l];
+            let wb = w[b][l];
+            let (s, t) = (wb * dl, wb * dl_next[l]);
+            xs[b][l] += s * nx[k][l] - t * n_next[0][l];
+            ys[b][l] += s * ny[k][l] - t * n_next[1][l];
+            zs[b][l] += s * nz[k][l] - t * n_next[2][l];
+            lam[k][l] += dl;
+            dl_next[l] = dl;
+            (n_next[0][l], n_next[1][l], n_next[2][l]) = (nx[k][l], ny[k][l], nz[k][l]);
+        }
+    }
+    for l in 0..L {
+        let s = w[0][l] * dl_next[l];
+        xs[0][l] -= s * n_next[0][l];
+        ys[0][l] -= s * n_next[1][l];
+        zs[0][l] -= s * n_next[2][l];
+    }
+}
+
+/// Where entry `k` of chain `chain` lives in a row-major grid of `cols` columns: warp chains
+/// (class 0) are columns, weft chains (class 1) rows.
+#[inline(always)]
+fn at(class: usize, cols: usize, chain: usize, k: usize) -> usize {
+    if class == 0 {
+        k * cols + chain
+    } else {
+        chain * cols + k
+    }
+}
+
+/// `(chains, particles per chain)` of a direction.
+pub(crate) fn shape(class: usize, rows: usize, cols: usize) -> (usize, usize) {
+    if class == 0 {
+        (cols, rows)
+    } else {
+        (rows, cols)
+    }
+}
+
+/// Copies the chains `first .. first + lanes` of a direction into a block of `L` lanes
+/// (fields x, y, z, start x, y, z, inverse mass, rest length, multiplier; the multipliers are
+/// zero unless `lambda` is given). Lanes past `lanes` are left as they are (zero: inactive).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn gather<const L: usize>(
+    chunk: &mut [f32],
+    len: usize,
+    (class, cols): (usize, usize),
+    (first, lanes): (usize, usize),
+    pos: [&[f32]; 3],
+    prev: [&[f32]; 3],
+    w: &[f32],
+    rest: &[f32],
+    lambda: Option<&[f32]>,
+) {
+    let size = len * L;
+    let sources = [pos[0], pos[1], pos[2], prev[0], prev[1], prev[2], w, rest];
+    for (f, src) in sources.into_iter().chain(lambda).enumerate() {
+        let dst = &mut chunk[f * size..(f + 1) * size];
+        if class == 0 {
+            for (k, dst) in dst.chunks_exact_mut(L).enumerate() {
+                let i = at(class, cols, first, k);
+                dst[..lanes].copy_from_slice(&src[i..i + lanes]);
+            }
+        } else {
+            for lane in 0..lanes {
+                let i = at(class, cols, first + lane, 0);
+                for (k, &v) in src[i..i + len].iter().enumerate() {
+                    dst[k * L + lane] = v;
+                }
+            }
+        }
+    }
+    if lambda.is_none() {
+        chunk[8 * size..9 * size].fill(0.0);
+    }
+}
+
+/// The reference path's chain solves: every chain of one direction (`class` 0: the warp
+/// columns, 1: the weft rows), one after the other, each at one lane in `scratch`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn solve_reference(
+    particles: &mut crate::particles::Particles,
+    start: &[glam::Vec3],
+    rest: &[f32],
+    lambda: &mut [f32],
+    (rows, cols, class): (usize, usize, usize),
+    alpha: f32,
+    gamma: f32,
+    scratch: &mut Vec<f32>,
+) {
+    let (count, len) = shape(class, rows, cols);
+    scratch.clear();
+    scratch.resize(FIELDS * len, 0.0);
+    for chain in 0..count {
+        {
+            let (fields, _) = scratch.split_at_mut(9 * len);
+            for k in 0..len {
+                let i = at(class, cols, chain, k);
+                let (x, x0) = (particles.position[i], start[i]);
+                for (f, v) in [
+                    x.x,
+                    x.y,
+                    x.z,
+                    x0.x,
+                    x0.y,
+                    x0.z,
+                    particles.inv_mass[i],
+                    rest[i],
+                ]
+                .into_iter()
+                .chain([lambda[i]])
+                .enumerate()
+                {
+                    fields[f * len + k] = v;
+                }
+            }
+        }
+        solve::<1>(Block::split(scratch, len), len, alpha, gamma);
+        for k in 0..len {
+            let i = at(class, cols, chain, k);
+            particles.position[i] =
+                glam::Vec3::new(scratch[k], scratch[len + k], scratch[2 * len + k]);
+            lambda[i] = scratch[8 * len + k];
+        }
+    }
+}
