@@ -98,7 +98,8 @@ fn drape(c: &mut Criterion) {
 
 /// The drape with XPBD at 256² (20 substeps, strain limits to 64 particles), warmed onto
 /// the ball: the reference path (storage-order Gauss–Seidel) on 1 thread, the grid path
-/// (coloured Gauss–Seidel over rows) on 1 and 2 threads.
+/// (coloured Gauss–Seidel over rows) on 1 and 2 threads; then the grid path with the chain
+/// solves instead of the strain limits, on 1 and 2 threads.
 fn xpbd_drape(c: &mut Criterion) {
     let mut sim = presets::drape(256, Integrator::Xpbd).expect("drape scene");
     let mut config = *sim.config();
@@ -115,6 +116,14 @@ fn xpbd_drape(c: &mut Criterion) {
     );
     bench_on(c, "drape-256/xpbd/grid/1t", &sim, 1, None);
     bench_on(c, "drape-256/xpbd/grid/2t", &sim, 2, None);
+    // The chain solves instead of the strain limits (same substeps).
+    let mut sim = sim;
+    let mut config = *sim.config();
+    config.xpbd.hierarchy_levels = 0;
+    config.xpbd.chains = true;
+    sim.set_config(config).expect("config");
+    bench_on(c, "drape-256/xpbd/chains/1t", &sim, 1, None);
+    bench_on(c, "drape-256/xpbd/chains/2t", &sim, 2, None);
 }
 
 criterion_group!(benches, peer_ball, drape, xpbd_drape);

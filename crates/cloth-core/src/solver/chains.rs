@@ -34,6 +34,9 @@
 /// Chains per block on the grid path: the lanes of the vectorised sweeps.
 pub(crate) const LANES: usize = 16;
 
+/// Steps per tile of the transposes of the weft's blocks.
+const TILE: usize = 16;
+
 /// Arrays per block: x, y, z, start x, y, z, inverse mass, rest length, multiplier, direction
 /// x, y, z, the eliminated super-diagonal and right-hand side.
 pub(crate) const FIELDS: usize = 14;
@@ -240,16 +243,36 @@ pub(crate) fn gather<const L: usize>(
                 dst[..lanes].copy_from_slice(&src[i..i + lanes]);
             }
         } else {
-            for lane in 0..lanes {
-                let i = at(class, cols, first + lane, 0);
-                for (k, &v) in src[i..i + len].iter().enumerate() {
-                    dst[k * L + lane] = v;
+            // A transpose, in tiles of TILE steps (each tile's rows stay in L1).
+            let dst = &mut dst.as_chunks_mut::<L>().0[..len];
+            for k0 in (0..len).step_by(TILE) {
+                let tile = &mut dst[k0..(k0 + TILE).min(len)];
+                let n = tile.len();
+                for lane in 0..lanes {
+                    let i = at(class, cols, first + lane, k0);
+                    for (d, &v) in tile.iter_mut().zip(&src[i..i + n]) {
+                        d[lane] = v;
+                    }
                 }
             }
         }
     }
     if lambda.is_none() {
         chunk[8 * size..9 * size].fill(0.0);
+    }
+}
+
+/// Copies field `field` of a weft block (chains `first ..`, step-major, `L` lanes) back into
+/// the rows `dst` (`cols` entries each, one per chain): the transpose of [`gather`]'s, in tiles.
+pub(crate) fn scatter_rows<const L: usize>(src: &[f32], len: usize, dst: &mut [f32], cols: usize) {
+    let src = &src.as_chunks::<L>().0[..len];
+    for k0 in (0..len).step_by(TILE) {
+        let tile = &src[k0..(k0 + TILE).min(len)];
+        for (lane, row) in dst.chunks_exact_mut(cols).enumerate().take(L) {
+            for (d, s) in row[k0..k0 + tile.len()].iter_mut().zip(tile) {
+                *d = s[lane];
+            }
+        }
     }
 }
 

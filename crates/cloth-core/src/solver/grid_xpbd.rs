@@ -467,11 +467,7 @@ impl XpbdGrid {
                     } else {
                         let block = &scratch[i * FIELDS * size..][..FIELDS * size];
                         let src = &block[field * size..][..size];
-                        for (lane, row) in dst.chunks_exact_mut(cols).enumerate() {
-                            for (k, v) in row.iter_mut().enumerate() {
-                                *v = src[k * LANES + lane];
-                            }
-                        }
+                        chains::scatter_rows::<LANES>(src, len, dst, cols);
                     }
                 }
             });
