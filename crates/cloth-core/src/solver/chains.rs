@@ -122,48 +122,51 @@ pub(crate) fn solve<const L: usize>(block: Block<'_>, len: usize, alpha: f32, ga
         let mut n_prev = [[0.0_f32; L]; 3];
         for k in 0..len - 1 {
             let (a, b) = (k, k + 1);
+            // Local copies: the lane loop then reads and writes only locals and vectorises
+            // without alias checks.
+            let (xa, xb, ya, yb, za, zb) = (xs[a], xs[b], ys[a], ys[b], zs[a], zs[b]);
+            let (pxa, pxb, pya, pyb, pza, pzb) = (px[a], px[b], py[a], py[b], pz[a], pz[b]);
+            let (w_a, w_b, rest_k, lam_k) = (w[a], w[b], rest[k], lam[k]);
             let mut cp_prev = [0.0_f32; L];
+            let (mut ex, mut ey, mut ez, mut d) =
+                ([0.0_f32; L], [0.0_f32; L], [0.0_f32; L], [0.0_f32; L]);
             for l in 0..L {
-                let (dx, dy, dz) = (
-                    xs[b][l] - xs[a][l],
-                    ys[b][l] - ys[a][l],
-                    zs[b][l] - zs[a][l],
-                );
+                let (dx, dy, dz) = (xb[l] - xa[l], yb[l] - ya[l], zb[l] - za[l]);
                 let length = ((dx * dx) + (dy * dy) + (dz * dz)).sqrt();
-                let (wa, wb) = (w[a][l], w[b][l]);
+                let (wa, wb) = (w_a[l], w_b[l]);
                 let ws = wa + wb;
                 let active = length > 0.0 && ws > 0.0;
-                let (ex, ey, ez) = if active {
+                (ex[l], ey[l], ez[l]) = if active {
                     (dx / length, dy / length, dz / length)
                 } else {
                     (0.0, 0.0, 0.0)
                 };
                 let (vx, vy, vz) = (
-                    (xs[b][l] - px[b][l]) - (xs[a][l] - px[a][l]),
-                    (ys[b][l] - py[b][l]) - (ys[a][l] - py[a][l]),
-                    (zs[b][l] - pz[b][l]) - (zs[a][l] - pz[a][l]),
+                    (xb[l] - pxb[l]) - (xa[l] - pxa[l]),
+                    (yb[l] - pyb[l]) - (ya[l] - pya[l]),
+                    (zb[l] - pzb[l]) - (za[l] - pza[l]),
                 );
-                let rate = (ex * vx) + (ey * vy) + (ez * vz);
-                let constraint = length - rest[k][l];
+                let rate = (ex[l] * vx) + (ey[l] * vy) + (ez[l] * vz);
+                let constraint = length - rest_k[l];
                 let diag = if active { g1 * ws + alpha } else { 1.0 };
                 let rhs = if active {
-                    -constraint - alpha * lam[k][l] - gamma * rate
+                    -constraint - alpha * lam_k[l] - gamma * rate
                 } else {
                     0.0
                 };
                 // Coupling with spring k − 1 through particle k (zero for k = 0).
-                let cos = (n_prev[0][l] * ex) + (n_prev[1][l] * ey) + (n_prev[2][l] * ez);
+                let cos = (n_prev[0][l] * ex[l]) + (n_prev[1][l] * ey[l]) + (n_prev[2][l] * ez[l]);
                 let e = -(g1 * wa) * cos;
                 let c = e / m_prev[l];
                 let m = diag - e * c;
-                let d = (rhs - e * dp_prev[l]) / m;
+                d[l] = (rhs - e * dp_prev[l]) / m;
                 cp_prev[l] = c;
                 m_prev[l] = m;
-                dp_prev[l] = d;
-                dp[k][l] = d;
-                (nx[k][l], ny[k][l], nz[k][l]) = (ex, ey, ez);
-                (n_prev[0][l], n_prev[1][l], n_prev[2][l]) = (ex, ey, ez);
             }
+            dp_prev = d;
+            dp[k] = d;
+            (nx[k], ny[k], nz[k]) = (ex, ey, ez);
+            n_prev = [ex, ey, ez];
             if k > 0 {
                 cp[k - 1] = cp_prev;
             }
@@ -178,23 +181,54 @@ pub(crate) fn solve<const L: usize>(block: Block<'_>, len: usize, alpha: f32, ga
     let mut n_next = [[0.0_f32; L]; 3];
     for k in (0..len - 1).rev() {
         let b = k + 1;
+        // Whole-lane steps (simple loops, each one vector operation per lane group).
+        let mut dl = [0.0_f32; L];
         for l in 0..L {
-            let dl = dp[k][l] - cp[k][l] * dl_next[l];
-            let wb = w[b][l];
-            let (s, t) = (wb * dl, wb * dl_next[l]);
-            xs[b][l] += s * nx[k][l] - t * n_next[0][l];
-            ys[b][l] += s * ny[k][l] - t * n_next[1][l];
-            zs[b][l] += s * nz[k][l] - t * n_next[2][l];
-            lam[k][l] += dl;
-            dl_next[l] = dl;
-            (n_next[0][l], n_next[1][l], n_next[2][l]) = (nx[k][l], ny[k][l], nz[k][l]);
+            dl[l] = dp[k][l] - cp[k][l] * dl_next[l];
         }
+        let wb = w[b];
+        let n_k = [nx[k], ny[k], nz[k]];
+        for (x, (n_k, n_next)) in [&mut xs[b], &mut ys[b], &mut zs[b]]
+            .into_iter()
+            .zip(n_k.iter().zip(&n_next))
+        {
+            // Through a local copy (no alias checks in the lane loop).
+            let mut v = *x;
+            apply(&mut v, &wb, &dl, n_k, &dl_next, n_next);
+            *x = v;
+        }
+        for l in 0..L {
+            lam[k][l] += dl[l];
+        }
+        dl_next = dl;
+        n_next = [nx[k], ny[k], nz[k]];
     }
     for l in 0..L {
         let s = w[0][l] * dl_next[l];
         xs[0][l] -= s * n_next[0][l];
         ys[0][l] -= s * n_next[1][l];
         zs[0][l] -= s * n_next[2][l];
+    }
+}
+
+/// One component of the back substitution's update of particle `k + 1`:
+/// `x += (w·Δλ_k)·n_k − (w·Δλ_{k+1})·n_{k+1}` (separate arrays, so it vectorises).
+#[inline(always)]
+fn apply<const L: usize>(
+    x: &mut [f32; L],
+    w: &[f32; L],
+    dl: &[f32; L],
+    n: &[f32; L],
+    dl_next: &[f32; L],
+    n_next: &[f32; L],
+) {
+    for ((x, &w), ((&dl, &n), (&dl_next, &n_next))) in x
+        .iter_mut()
+        .zip(w)
+        .zip(dl.iter().zip(n).zip(dl_next.iter().zip(n_next)))
+    {
+        let (s, t) = (w * dl, w * dl_next);
+        *x += s * n - t * n_next;
     }
 }
 
