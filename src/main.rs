@@ -20,6 +20,7 @@ Scenes (`cloth scenes` lists all built-in ones; any TOML scene file works too):
   hanging     a 1 m curtain pinned along its top edge
   flag        a flag pinned along its left edge in gusty wind
   peer-ball   the peer benchmark: a stiff cloth on a frictionless ball
+  xpbd-drape  the drape at 128x128 with XPBD chain solves, in real time
   table, sweep, euler-sheet, verlet-swing, implicit-drape, xpbd-curtain
 
 Examples:

@@ -1591,6 +1591,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
         "xpbd-curtain",
         include_str!("../../../scenes/xpbd-curtain.toml"),
     ),
+    (
+        "xpbd-drape",
+        include_str!("../../../scenes/xpbd-drape.toml"),
+    ),
     ("sweep", include_str!("../../../scenes/sweep.toml")),
     ("fold", include_str!("../../../scenes/fold.toml")),
     ("pile", include_str!("../../../scenes/pile.toml")),
