@@ -189,3 +189,31 @@ fn chains_keep_the_draped_cloth_from_stretching() {
     assert!(with[0] < 0.03 && with[1] < 0.03, "{with:?}");
     assert!(without[0] > 3.0 * with[0], "{without:?} vs {with:?}");
 }
+
+/// `xpbd.chains` is ignored on a cloth that is not a grid: the curtain's own springs and
+/// triangles handed over as a plain topology (no grid recorded) step to the same bits with
+/// and without it. Tolerance: none.
+#[test]
+fn chains_are_ignored_off_the_grid() {
+    let run = |chains: bool| {
+        let mut cloth = GridBuilder::new(ROWS, COLS)
+            .size(SPACING * (COLS - 1) as f32, SPACING * (ROWS - 1) as f32)
+            .orientation(Orientation::Vertical)
+            .mass(Mass::PerParticle(MASS))
+            .pin_edge(Edge::Top)
+            .build()
+            .expect("cloth");
+        let t = &cloth.topology;
+        let per_kind = cloth_core::SpringKind::ALL.map(|k| t.springs_of(k).to_vec());
+        cloth.topology = cloth_core::Topology::new(per_kind, t.triangles().to_vec());
+        assert_eq!(cloth.topology.grid(), None);
+        let mut config = *curtain(chains, 4).config();
+        config.xpbd.chains = chains;
+        let mut sim = Simulation::new(cloth, config).expect("sim");
+        for _ in 0..30 {
+            sim.step().expect("stable");
+        }
+        bits(&sim.particles().position)
+    };
+    assert!(run(true) == run(false));
+}

@@ -296,8 +296,9 @@ pub(crate) fn gather<const L: usize>(
     }
 }
 
-/// Copies field `field` of a weft block (chains `first ..`, step-major, `L` lanes) back into
-/// the rows `dst` (`cols` entries each, one per chain): the transpose of [`gather`]'s, in tiles.
+/// Copies one field of a weft block (`src`: `len` steps of `L` lanes, step-major) back into
+/// the rows `dst` (`cols` entries each, one row per lane): the transpose of [`gather`]'s, in
+/// tiles.
 pub(crate) fn scatter_rows<const L: usize>(src: &[f32], len: usize, dst: &mut [f32], cols: usize) {
     let src = &src.as_chunks::<L>().0[..len];
     for k0 in (0..len).step_by(TILE) {
