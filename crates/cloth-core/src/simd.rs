@@ -326,30 +326,31 @@ pub(crate) fn xpbd_chains(
     len: usize,
     alpha: f32,
     gamma: f32,
+    keep: bool,
 ) {
     match kernel {
         #[cfg(target_arch = "x86_64")]
         Kernel::Avx512 if Kernel::Avx512.is_available() => {
             // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { chains_avx512(block, len, alpha, gamma) }
+            unsafe { chains_avx512(block, len, alpha, gamma, keep) }
         }
         #[cfg(target_arch = "x86_64")]
         Kernel::Avx2 if Kernel::Avx2.is_available() => {
             // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { chains_avx2(block, len, alpha, gamma) }
+            unsafe { chains_avx2(block, len, alpha, gamma, keep) }
         }
-        _ => chains::solve::<{ chains::LANES }>(block, len, alpha, gamma),
+        _ => chains::solve::<{ chains::LANES }>(block, len, alpha, gamma, keep),
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn chains_avx2(block: chains::Block<'_>, len: usize, alpha: f32, gamma: f32) {
-    chains::solve::<{ chains::LANES }>(block, len, alpha, gamma);
+fn chains_avx2(block: chains::Block<'_>, len: usize, alpha: f32, gamma: f32, keep: bool) {
+    chains::solve::<{ chains::LANES }>(block, len, alpha, gamma, keep);
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-fn chains_avx512(block: chains::Block<'_>, len: usize, alpha: f32, gamma: f32) {
-    chains::solve::<{ chains::LANES }>(block, len, alpha, gamma);
+fn chains_avx512(block: chains::Block<'_>, len: usize, alpha: f32, gamma: f32, keep: bool) {
+    chains::solve::<{ chains::LANES }>(block, len, alpha, gamma, keep);
 }

@@ -124,12 +124,19 @@ fn trace(mut sim: Simulation, kernel: Kernel, steps: usize) -> (Vec<[u32; 3]>, V
 /// contacts and write-back are the reference's arithmetic: with only structural springs (the
 /// chains) the reference path (one chain at a time, storage order) and the grid path (blocks
 /// of 16 chains in parallel) give the same bits, for the hanging curtain and for the drape
-/// with contacts, friction and wind. Tolerance: none.
+/// with contacts, friction and wind, with one sweep per substep and with two (multipliers
+/// kept). Tolerance: none.
 #[test]
 fn chains_match_the_reference_path_bit_for_bit() {
+    // Two sweeps per substep: the multipliers are kept and read back.
+    let mut two_sweeps = drape(40, 8, true, false);
+    let mut config = *two_sweeps.config();
+    config.xpbd.iterations = 2;
+    two_sweeps.set_config(config).expect("config");
     for (name, sim, steps) in [
         ("curtain", curtain(true, 4), 60),
         ("drape", drape(40, 8, true, false), 60),
+        ("drape, 2 sweeps", two_sweeps, 40),
     ] {
         let reference = trace(sim.clone(), Kernel::Reference, steps);
         for kernel in [Kernel::Portable, Kernel::Avx2, Kernel::Avx512] {

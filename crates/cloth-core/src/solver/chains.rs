@@ -92,9 +92,16 @@ impl<'a> Block<'a> {
 /// Solves the `L` chains of `len ≥ 2` particles of a block (see the module docs): one forward
 /// elimination (directions, constraint values, the tridiagonal matrix and its elimination,
 /// from the current positions), then one back substitution applying every multiplier's change
-/// to the positions. Plain IEEE `f32` (no fused multiply-add), the same for every lane count.
+/// to the positions (and, with `keep`, adding it to the multipliers, which are read as zero
+/// otherwise). Plain IEEE `f32` (no fused multiply-add), the same for every lane count.
 #[inline(always)]
-pub(crate) fn solve<const L: usize>(block: Block<'_>, len: usize, alpha: f32, gamma: f32) {
+pub(crate) fn solve<const L: usize>(
+    block: Block<'_>,
+    len: usize,
+    alpha: f32,
+    gamma: f32,
+    keep: bool,
+) {
     let Block {
         x,
         prev,
@@ -126,7 +133,9 @@ pub(crate) fn solve<const L: usize>(block: Block<'_>, len: usize, alpha: f32, ga
             // without alias checks.
             let (xa, xb, ya, yb, za, zb) = (xs[a], xs[b], ys[a], ys[b], zs[a], zs[b]);
             let (pxa, pxb, pya, pyb, pza, pzb) = (px[a], px[b], py[a], py[b], pz[a], pz[b]);
-            let (w_a, w_b, rest_k, lam_k) = (w[a], w[b], rest[k], lam[k]);
+            // Without kept multipliers they are zero (`−C − α̃·0 = −C`: the same bits).
+            let lam_k = if keep { lam[k] } else { [0.0; L] };
+            let (w_a, w_b, rest_k) = (w[a], w[b], rest[k]);
             let mut cp_prev = [0.0_f32; L];
             let (mut ex, mut ey, mut ez, mut d) =
                 ([0.0_f32; L], [0.0_f32; L], [0.0_f32; L], [0.0_f32; L]);
@@ -197,8 +206,10 @@ pub(crate) fn solve<const L: usize>(block: Block<'_>, len: usize, alpha: f32, ga
             apply(&mut v, &wb, &dl, n_k, &dl_next, n_next);
             *x = v;
         }
-        for l in 0..L {
-            lam[k][l] += dl[l];
+        if keep {
+            for l in 0..L {
+                lam[k][l] += dl[l];
+            }
         }
         dl_next = dl;
         n_next = [nx[k], ny[k], nz[k]];
@@ -253,8 +264,10 @@ pub(crate) fn shape(class: usize, rows: usize, cols: usize) -> (usize, usize) {
 }
 
 /// Copies the chains `first .. first + lanes` of a direction into a block of `L` lanes
-/// (fields x, y, z, start x, y, z, inverse mass, rest length, multiplier; the multipliers are
-/// zero unless `lambda` is given). Lanes past `lanes` are left as they are (zero: inactive).
+/// (fields x, y, z, start x, y, z, inverse mass, rest length, multiplier). The inverse masses
+/// and rest lengths only when `statics` (they stay in the block between substeps); the
+/// multipliers only when `lambda` is given (else [`solve`] runs with `keep = false` and never
+/// reads them). Lanes past `lanes` are left as they are (zero: inactive).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn gather<const L: usize>(
     chunk: &mut [f32],
@@ -266,10 +279,18 @@ pub(crate) fn gather<const L: usize>(
     w: &[f32],
     rest: &[f32],
     lambda: Option<&[f32]>,
+    statics: bool,
 ) {
     let size = len * L;
     let sources = [pos[0], pos[1], pos[2], prev[0], prev[1], prev[2], w, rest];
-    for (f, src) in sources.into_iter().chain(lambda).enumerate() {
+    let fields = sources
+        .into_iter()
+        .map(Some)
+        .chain([lambda])
+        .enumerate()
+        .filter(|&(f, _)| statics || !(6..=7).contains(&f));
+    for (f, src) in fields {
+        let Some(src) = src else { continue };
         let dst = &mut chunk[f * size..(f + 1) * size];
         if class == 0 {
             for (k, dst) in dst.chunks_exact_mut(L).enumerate() {
@@ -290,9 +311,6 @@ pub(crate) fn gather<const L: usize>(
                 }
             }
         }
-    }
-    if lambda.is_none() {
-        chunk[8 * size..9 * size].fill(0.0);
     }
 }
 
@@ -351,7 +369,7 @@ pub(crate) fn solve_reference(
                 }
             }
         }
-        solve::<1>(Block::split(scratch, len), len, alpha, gamma);
+        solve::<1>(Block::split(scratch, len), len, alpha, gamma, true);
         for k in 0..len {
             let i = at(class, cols, chain, k);
             particles.position[i] =

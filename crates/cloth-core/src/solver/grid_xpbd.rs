@@ -104,6 +104,8 @@ pub(crate) struct XpbdGrid {
     vel: [Vec<f32>; 3],
     /// Blocks of the chain solves (`XpbdSettings::chains`): warp (columns), weft (rows).
     chains: [Vec<f32>; 2],
+    /// Whether each direction's blocks hold the current inverse masses and rest lengths.
+    chain_statics: [bool; 2],
 }
 
 /// Whether the grid path runs XPBD's sweeps for these settings: a cloth built by the grid
@@ -134,6 +136,7 @@ impl XpbdGrid {
             && load_rest(&mut self.rest, topology, rows, cols)
             && grid_triangles(topology, rows, cols);
         self.key = Some((rows, cols, springs, ok));
+        self.chain_statics = [false; 2];
         self.levels_key = None;
         if ok {
             self.rows = rows;
@@ -326,7 +329,16 @@ impl XpbdGrid {
         let p = &mut *ctx.particles;
         scatter(&p.position, &mut self.pos);
         scatter(start, &mut self.prev);
-        self.inv_mass.copy_from_slice(&p.inv_mass);
+        // The chain blocks keep their copy of the inverse masses until one changes.
+        if !self
+            .inv_mass
+            .iter()
+            .zip(&p.inv_mass)
+            .all(|(a, b)| a.to_bits() == b.to_bits())
+        {
+            self.inv_mass.copy_from_slice(&p.inv_mass);
+            self.chain_statics = [false; 2];
+        }
         self.keep = settings.iterations > 1;
         if self.keep {
             for l in &mut self.lambda {
@@ -418,10 +430,14 @@ impl XpbdGrid {
         if scratch.len() != blocks * FIELDS * size {
             scratch.clear();
             scratch.resize(blocks * FIELDS * size, 0.0);
+            self.chain_statics[class] = false;
         }
+        let statics = !self.chain_statics[class];
+        self.chain_statics[class] = true;
         let [x, y, z] = &self.pos;
         let (prev, w, rest) = (&self.prev, &self.inv_mass, &self.rest[class]);
-        let lambda = self.keep.then_some(&self.lambda[class][..]);
+        let keep = self.keep;
+        let lambda = keep.then_some(&self.lambda[class][..]);
         scratch
             .par_chunks_mut(FIELDS * size)
             .enumerate()
@@ -437,11 +453,12 @@ impl XpbdGrid {
                     w,
                     rest,
                     lambda,
+                    statics,
                 );
-                crate::simd::xpbd_chains(kernel, Block::split(chunk, size), len, alpha, gamma);
+                let block = Block::split(chunk, size);
+                crate::simd::xpbd_chains(kernel, block, len, alpha, gamma, keep);
             });
         let scratch = &self.chains[class];
-        let keep = self.keep;
         let [x, y, z] = &mut self.pos;
         let lambda = &mut self.lambda[class];
         // Fields 0, 1, 2 (positions) and 8 (multipliers) back into the rows: by row for the
