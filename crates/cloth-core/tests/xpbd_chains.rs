@@ -19,15 +19,20 @@ const MASS: f32 = 0.01;
 const K: f32 = 1500.0;
 const SPACING: f32 = 0.025;
 
-/// A curtain of identical particles pinned along its top row, warp and weft springs only.
-fn curtain(chains: bool, substeps: u32) -> Simulation {
-    let cloth = GridBuilder::new(ROWS, COLS)
+/// The curtain's cloth: identical particles, pinned along its top row.
+fn curtain_cloth() -> cloth_core::Cloth {
+    GridBuilder::new(ROWS, COLS)
         .size(SPACING * (COLS - 1) as f32, SPACING * (ROWS - 1) as f32)
         .orientation(Orientation::Vertical)
         .mass(Mass::PerParticle(MASS))
         .pin_edge(Edge::Top)
         .build()
-        .expect("cloth");
+        .expect("cloth")
+}
+
+/// The curtain with warp and weft springs only.
+fn curtain(chains: bool, substeps: u32) -> Simulation {
+    let cloth = curtain_cloth();
     let mut config = SimConfig {
         integrator: Integrator::Xpbd,
         substeps,
@@ -203,13 +208,7 @@ fn chains_keep_the_draped_cloth_from_stretching() {
 #[test]
 fn chains_are_ignored_off_the_grid() {
     let run = |chains: bool| {
-        let mut cloth = GridBuilder::new(ROWS, COLS)
-            .size(SPACING * (COLS - 1) as f32, SPACING * (ROWS - 1) as f32)
-            .orientation(Orientation::Vertical)
-            .mass(Mass::PerParticle(MASS))
-            .pin_edge(Edge::Top)
-            .build()
-            .expect("cloth");
+        let mut cloth = curtain_cloth();
         let t = &cloth.topology;
         let per_kind = cloth_core::SpringKind::ALL.map(|k| t.springs_of(k).to_vec());
         cloth.topology = cloth_core::Topology::new(per_kind, t.triangles().to_vec());

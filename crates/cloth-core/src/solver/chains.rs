@@ -343,7 +343,7 @@ pub(crate) fn solve_reference(
     scratch: &mut Vec<f32>,
 ) {
     let (count, len) = shape(class, rows, cols);
-    scratch.clear();
+    // Every field the solve reads is gathered below; only the length matters.
     scratch.resize(FIELDS * len, 0.0);
     for chain in 0..count {
         {
