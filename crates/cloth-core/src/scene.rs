@@ -609,6 +609,11 @@ pub struct XpbdDesc {
     pub hierarchy_slack: f32,
     #[serde(default)]
     pub chains: bool,
+    #[serde(default = "d_chain_iter")]
+    pub chain_iterations: u32,
+}
+fn d_chain_iter() -> u32 {
+    XpbdSettings::default().chain_iterations
 }
 fn d_hslack() -> f32 {
     XpbdSettings::default().hierarchy_slack
@@ -628,6 +633,7 @@ impl Default for XpbdDesc {
             hierarchy_levels: 0,
             hierarchy_slack: d_hslack(),
             chains: false,
+            chain_iterations: d_chain_iter(),
         }
     }
 }
@@ -1125,6 +1131,13 @@ impl Scene {
             ));
         }
         non_negative("solver.xpbd.hierarchy_slack", s.xpbd.hierarchy_slack)?;
+        if !(1..=16).contains(&s.xpbd.chain_iterations) {
+            return Err(invalid(
+                "solver.xpbd.chain_iterations",
+                s.xpbd.chain_iterations,
+                "1 ..= 16",
+            ));
+        }
         if !(s.limits.max_stretch_ratio.is_finite() && s.limits.max_stretch_ratio > 1.0) {
             return Err(invalid(
                 "solver.limits.max_stretch_ratio",
@@ -1214,6 +1227,7 @@ impl Scene {
             hierarchy_levels: s.xpbd.hierarchy_levels,
             hierarchy_slack: s.xpbd.hierarchy_slack,
             chains: s.xpbd.chains,
+            chain_iterations: s.xpbd.chain_iterations,
         };
         config
     }
@@ -1459,6 +1473,7 @@ const KNOWN_KEYS: &[&str] = &[
     "hierarchy_levels",
     "hierarchy_slack",
     "chains",
+    "chain_iterations",
     "max_stretch_ratio",
     "max_speed",
     "eye",
@@ -1714,6 +1729,7 @@ impl Scene {
                 hierarchy_levels: c.xpbd.hierarchy_levels,
                 hierarchy_slack: c.xpbd.hierarchy_slack,
                 chains: c.xpbd.chains,
+                chain_iterations: c.xpbd.chain_iterations,
             },
             limits: LimitsDesc {
                 max_stretch_ratio: c.limits.max_stretch_ratio,

@@ -523,6 +523,11 @@ fn bad_configs() -> Vec<(SimConfig, &'static str, &'static str)> {
         "config.substeps",
         "1 ..= 100000",
     ));
+    for chain_iterations in [0, 17] {
+        let mut c = d();
+        c.xpbd.chain_iterations = chain_iterations;
+        v.push((c, "config.xpbd.chain_iterations", "1 ..= 16"));
+    }
     v.push((
         SimConfig {
             gravity: Vec3::new(0.0, f32::NAN, 0.0),

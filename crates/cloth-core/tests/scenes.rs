@@ -138,7 +138,7 @@ fn wrong_types_are_errors() {
 /// Out-of-range and non-finite values name the key, its line and the allowed range.
 #[test]
 fn out_of_range_values_name_key_line_and_range() {
-    let cases: [(&str, &str, &str, usize, &str); 8] = [
+    let cases: [(&str, &str, &str, usize, &str); 9] = [
         (
             "resolution = [8, 8]",
             "resolution = [0, 8]",
@@ -194,6 +194,13 @@ fn out_of_range_values_name_key_line_and_range() {
             "solver.substeps",
             11,
             "auto",
+        ),
+        (
+            "radius = 0.5",
+            "radius = 0.5\n[solver.xpbd]\nchains = true\nchain_iterations = 0",
+            "solver.xpbd.chain_iterations",
+            12,
+            "1 ..= 16",
         ),
     ];
     for (from, to, key, line, allowed) in cases {

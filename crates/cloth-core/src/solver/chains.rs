@@ -222,6 +222,28 @@ pub(crate) fn solve<const L: usize>(
     }
 }
 
+/// `iterations` Newton iterations of the chain solves of a block (`XpbdSettings::
+/// chain_iterations`): [`solve`] again from the positions the previous iteration left, the
+/// multipliers adding up over the iterations. Without `keep` (one sweep per substep: the
+/// multipliers start at zero and are not kept) the block's multipliers are zeroed first when
+/// more than one iteration runs; one iteration never reads them (the same bits).
+pub(crate) fn iterate(
+    chunk: &mut [f32],
+    size: usize,
+    len: usize,
+    (alpha, gamma, iterations): (f32, f32, u32),
+    keep: bool,
+    kernel: crate::simd::Kernel,
+) {
+    if iterations > 1 && !keep {
+        chunk[8 * size..9 * size].fill(0.0);
+    }
+    let keep = keep || iterations > 1;
+    for _ in 0..iterations {
+        crate::simd::xpbd_chains(kernel, Block::split(chunk, size), len, alpha, gamma, keep);
+    }
+}
+
 /// One component of the back substitution's update of particle `k + 1`:
 /// `x += (w·Δλ_k)·n_k − (w·Δλ_{k+1})·n_{k+1}` (separate arrays, so it vectorises).
 #[inline(always)]
@@ -330,16 +352,15 @@ pub(crate) fn scatter_rows<const L: usize>(src: &[f32], len: usize, dst: &mut [f
 }
 
 /// The reference path's chain solves: every chain of one direction (`class` 0: the warp
-/// columns, 1: the weft rows), one after the other, each at one lane in `scratch`.
-#[allow(clippy::too_many_arguments)]
+/// columns, 1: the weft rows), one after the other, each at one lane in `scratch`, with
+/// `iterations` Newton iterations (see [`iterate`]).
 pub(crate) fn solve_reference(
     particles: &mut crate::particles::Particles,
     start: &[glam::Vec3],
     rest: &[f32],
     lambda: &mut [f32],
     (rows, cols, class): (usize, usize, usize),
-    alpha: f32,
-    gamma: f32,
+    (alpha, gamma, iterations): (f32, f32, u32),
     scratch: &mut Vec<f32>,
 ) {
     let (count, len) = shape(class, rows, cols);
@@ -369,7 +390,9 @@ pub(crate) fn solve_reference(
                 }
             }
         }
-        solve::<1>(Block::split(scratch, len), len, alpha, gamma, true);
+        for _ in 0..iterations {
+            solve::<1>(Block::split(scratch, len), len, alpha, gamma, true);
+        }
         for k in 0..len {
             let i = at(class, cols, chain, k);
             particles.position[i] =

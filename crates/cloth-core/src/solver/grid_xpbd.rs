@@ -367,7 +367,7 @@ impl XpbdGrid {
                     && class < 2
                     && let Mode::Compliant { alpha, gamma } = mode
                 {
-                    self.chains(class, alpha, gamma);
+                    self.chains(class, (alpha, gamma, settings.chain_iterations));
                     continue;
                 }
                 let (dr, a_dc, b_dc, _) = CLASSES[class];
@@ -419,8 +419,8 @@ impl XpbdGrid {
     /// (`class` 1, one per row), see [`super::chains`]: blocks of [`chains::LANES`] chains
     /// gathered, solved and scattered back, blocks in parallel (each block's chains are
     /// independent of the others', so any thread count gives the same bits).
-    fn chains(&mut self, class: usize, alpha: f32, gamma: f32) {
-        use super::chains::{self, Block, FIELDS, LANES};
+    fn chains(&mut self, class: usize, (alpha, gamma, iterations): (f32, f32, u32)) {
+        use super::chains::{self, FIELDS, LANES};
         let (rows, cols) = (self.rows, self.cols);
         let (count, len) = chains::shape(class, rows, cols);
         let size = len * LANES;
@@ -455,8 +455,7 @@ impl XpbdGrid {
                     lambda,
                     statics,
                 );
-                let block = Block::split(chunk, size);
-                crate::simd::xpbd_chains(kernel, block, len, alpha, gamma, keep);
+                chains::iterate(chunk, size, len, (alpha, gamma, iterations), keep, kernel);
             });
         let scratch = &self.chains[class];
         let [x, y, z] = &mut self.pos;

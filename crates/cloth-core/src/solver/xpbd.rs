@@ -286,8 +286,7 @@ fn solve_springs(ctx: &mut SubstepCtx<'_>, sc: &mut XpbdScratch, h: f32, chains:
                 sc.grid.class_rest(class),
                 &mut sc.chain_lambda[class],
                 (rows, cols, class),
-                alpha,
-                gamma,
+                (alpha, gamma, cfg.xpbd.chain_iterations),
                 &mut sc.chain_scratch,
             );
             continue;
