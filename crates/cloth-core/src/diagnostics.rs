@@ -221,6 +221,23 @@ pub fn explicit_stability_limit(config: &SimConfig, min_mass: f32) -> f32 {
 /// The most likely cause of an instability, in words, with what to change.
 pub(crate) fn instability_hint(config: &SimConfig, min_mass: f32) -> String {
     let h = config.substep_dt();
+    if config.integrator == Integrator::Xpbd {
+        let chains = if config.xpbd.chains {
+            format!(
+                ", or `xpbd.chain_iterations` (now {}; 2–3 keep taut chains straight at large \
+                 substeps)",
+                config.xpbd.chain_iterations
+            )
+        } else {
+            String::new()
+        };
+        return format!(
+            "xpbd gains no energy from its step, but at large substeps a sweep leaves stiff, \
+             taut springs tangled and overstretched (the lighter the particles, the more \
+             substeps they need); raise `substeps`{chains}, or check the scene: a collider or \
+             pin moving too fast, an extreme stiffness or wind (substep h = {h:.3e} s)"
+        );
+    }
     if !config.integrator.is_explicit() {
         return format!(
             "{} is stable at large steps, so the state itself is extreme: a collider or pin \
