@@ -22,6 +22,13 @@
 //! chains are a block Gauss–Seidel whose blocks are whole rows and columns (all warp chains,
 //! then all weft chains), and a draped cloth reaches a small strain with few substeps.
 //!
+//! One solve linearises the chain once: it takes every direction from the positions before
+//! it and applies the whole chain's tension at once, so a taut chain's sideways pull (its
+//! geometric stiffness) acts explicitly, and at large substeps a zigzag across the chain
+//! grows. `XpbdSettings::chain_iterations` repeats the solve from the positions the previous
+//! one left, the multipliers adding up (Newton's method on the chain's constraints), which
+//! approaches the chain's exact projection and keeps taut chains straight ([`iterate`]).
+//!
 //! A chain of two particles (one spring) gives the reference's single-spring projection to
 //! the bit. A spring of zero length or between two pinned particles is left out of its chain
 //! (its multiplier does not change).

@@ -416,7 +416,7 @@ impl XpbdGrid {
     }
 
     /// The chain solves of the warp (`class` 0, one chain per column) or of the weft
-    /// (`class` 1, one per row), see [`super::chains`]: blocks of [`chains::LANES`] chains
+    /// (`class` 1, one per row), see [`super::chains`]: blocks of [`super::chains::LANES`] chains
     /// gathered, solved and scattered back, blocks in parallel (each block's chains are
     /// independent of the others', so any thread count gives the same bits).
     fn chains(&mut self, class: usize, (alpha, gamma, iterations): (f32, f32, u32)) {
