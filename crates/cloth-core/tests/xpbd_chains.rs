@@ -67,6 +67,18 @@ fn hooke_error(sim: &Simulation) -> f32 {
     worst
 }
 
+/// Steps each curtain 300 frames with `kernel` on this thread; their [`hooke_error`]s.
+fn settled_hooke_errors<const N: usize>(kernel: Kernel, mut sims: [Simulation; N]) -> [f32; N] {
+    simd::set_kernel(Some(kernel)).expect("kernel");
+    for sim in &mut sims {
+        for _ in 0..300 {
+            sim.step().expect("stable");
+        }
+    }
+    simd::set_kernel(None).expect("default");
+    sims.map(|s| hooke_error(&s))
+}
+
 /// Hooke's law at static equilibrium (tension = weight below, elongation = tension / k), for a
 /// 40-row curtain at 10 % strain on top, 4 substeps per frame: with chains one sweep per
 /// substep solves every column exactly, so the lengths match to 1 % of the top elongation on
@@ -75,15 +87,7 @@ fn hooke_error(sim: &Simulation) -> f32 {
 #[test]
 fn chains_give_hookes_law_with_few_substeps() {
     for kernel in [Kernel::Reference, Kernel::Portable] {
-        simd::set_kernel(Some(kernel)).expect("kernel");
-        let mut sims = [curtain(true, 4), curtain(false, 4)];
-        for sim in &mut sims {
-            for _ in 0..300 {
-                sim.step().expect("stable");
-            }
-        }
-        simd::set_kernel(None).expect("default");
-        let [chains, plain] = sims.map(|s| hooke_error(&s));
+        let [chains, plain] = settled_hooke_errors(kernel, [curtain(true, 4), curtain(false, 4)]);
         eprintln!("{kernel:?}: chains {chains:.5}, spring by spring {plain:.5}");
         assert!(
             chains < 0.01,
@@ -261,15 +265,8 @@ fn zigzag_curtain(substeps: u32, chain_iterations: u32) -> Simulation {
 #[test]
 fn newton_iterations_keep_taut_chains_straight_at_large_steps() {
     for kernel in [Kernel::Reference, Kernel::Portable] {
-        simd::set_kernel(Some(kernel)).expect("kernel");
-        let mut sims = [zigzag_curtain(3, 3), zigzag_curtain(3, 1)];
-        for sim in &mut sims {
-            for _ in 0..300 {
-                sim.step().expect("stable");
-            }
-        }
-        simd::set_kernel(None).expect("default");
-        let [newton, once] = sims.map(|s| hooke_error(&s));
+        let [newton, once] =
+            settled_hooke_errors(kernel, [zigzag_curtain(3, 3), zigzag_curtain(3, 1)]);
         eprintln!("{kernel:?}: 3 iterations {newton:.5}, 1 iteration {once:.5}");
         assert!(newton < 0.01, "{kernel:?}: off Hooke's law by {newton}");
         assert!(
