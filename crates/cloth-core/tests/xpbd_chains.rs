@@ -2,11 +2,11 @@
 //! `solver::chains`): Hooke's law at equilibrium with few substeps, the reference and grid
 //! paths to the bit, and determinism across threads and kernels.
 
-use cloth_core::glam::Vec3;
+use cloth_core::glam::{Quat, Vec3};
 use cloth_core::simd::{self, Kernel};
 use cloth_core::{
-    Edge, GridBuilder, Integrator, Mass, Material, Orientation, SimConfig, Simulation,
-    SpringParams, presets,
+    Collider, Edge, GridBuilder, Integrator, Mass, Material, Orientation, Shape, SimConfig,
+    Simulation, SpringParams, presets,
 };
 
 fn bits(v: &[Vec3]) -> Vec<[u32; 3]> {
@@ -133,8 +133,10 @@ fn trace(mut sim: Simulation, kernel: Kernel, steps: usize) -> (Vec<[u32; 3]>, V
 /// contacts and write-back are the reference's arithmetic: with only structural springs (the
 /// chains) the reference path (one chain at a time, storage order) and the grid path (blocks
 /// of 16 chains in parallel) give the same bits, for the hanging curtain and for the drape
-/// with contacts, friction and wind, with one sweep per substep and with two (multipliers
-/// kept), and with three Newton iterations per chain solve. Tolerance: none.
+/// with contacts, friction and wind (also with a moving ball, and with a turning box and a moving capsule, which the
+/// grid path's passes on the arrays leave to the per-particle routines), with one sweep per
+/// substep and with two (multipliers kept), and with three Newton iterations per chain solve.
+/// Tolerance: none.
 #[test]
 fn chains_match_the_reference_path_bit_for_bit() {
     // Two sweeps per substep: the multipliers are kept and read back.
@@ -147,7 +149,39 @@ fn chains_match_the_reference_path_bit_for_bit() {
     let mut config = *newton.config();
     config.xpbd.chain_iterations = 3;
     newton.set_config(config).expect("config");
+    // Colliders the passes on the arrays do not take (a turning box, a capsule swept up
+    // through the cloth): per-particle contacts and continuous collision on every particle.
+    let mut others = drape(40, 8, true, false);
+    let turning_box = Collider::new(Shape::Box {
+        center: Vec3::new(0.35, 0.1, -0.3),
+        half_extents: Vec3::new(0.1, 0.05, 0.1),
+        rotation: Quat::IDENTITY,
+    })
+    .with_angular_velocity(Vec3::new(0.0, 2.0, 0.0));
+    let capsule = Collider::new(Shape::Capsule {
+        a: Vec3::new(-0.4, 0.2, 0.3),
+        b: Vec3::new(0.4, 0.2, 0.3),
+        radius: 0.03,
+    })
+    .with_velocity(Vec3::new(0.0, 40.0, 0.0));
+    others.add_collider(turning_box).expect("box");
+    others.add_collider(capsule).expect("capsule");
+    // The capsule does sweep through the cloth faster than the contacts alone can hold it.
+    let mut probe = others.clone();
+    let ccd: u64 = (0..40)
+        .map(|_| u64::from(probe.step().expect("stable").ccd_corrections))
+        .sum();
+    assert!(ccd > 0, "no continuous-collision correction in 40 steps");
+    // A ball sliding sideways under the cloth: the contacts and culls on the arrays with a
+    // moving collider (friction relative to its surface).
+    let mut moving = drape(40, 8, true, false);
+    let ball = moving.colliders()[0]
+        .clone()
+        .with_velocity(Vec3::new(0.4, 0.0, 0.2));
+    moving.set_collider(0, ball).expect("ball");
     for (name, sim, steps) in [
+        ("drape, moving ball", moving, 60),
+        ("drape, turning box and moving capsule", others, 40),
         ("curtain", curtain(true, 4), 60),
         ("drape", drape(40, 8, true, false), 60),
         ("drape, 2 sweeps", two_sweeps, 40),

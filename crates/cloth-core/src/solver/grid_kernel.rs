@@ -1021,14 +1021,37 @@ fn near_mask(job: &Job<'_>, start: &[Vec3], px: &[Vec3], near: &mut [bool]) {
 /// spheres and planes that do not turn ([`Job::soa_contacts`]).
 #[inline(always)]
 fn ccd_mask_soa(job: &Job<'_>, s: usize, a: &[Vec<f32>; 6], b: &[Vec<f32>; 6], near: &mut [bool]) {
-    use crate::collide::Shape;
     let cols = job.cols;
-    let w = &job.inv_mass[s * cols..][..cols];
-    let (ax, ay, az) = (&a[0][..cols], &a[1][..cols], &a[2][..cols]);
-    let (bx, by, bz) = (&b[0][..cols], &b[1][..cols], &b[2][..cols]);
-    let near = &mut near[..cols];
+    ccd_mask(
+        job.colliders,
+        job.h,
+        &job.inv_mass[s * cols..][..cols],
+        [&a[0][..cols], &a[1][..cols], &a[2][..cols]],
+        [&b[0][..cols], &b[1][..cols], &b[2][..cols]],
+        &mut near[..cols],
+    );
+}
+
+/// [`ccd_mask_soa`] on any run of particles: `near[k]` is cleared exactly for the particles
+/// `k` (inverse mass `w[k]`, start `a`, end `b`, by component) that [`ccd::resolve_in`] with
+/// substep `h` would leave alone at every collider without marching. Every collider must be
+/// a sphere or a plane that does not turn.
+#[inline(always)]
+pub(crate) fn ccd_mask(
+    colliders: &[Collider],
+    h: f32,
+    w: &[f32],
+    [ax, ay, az]: [&[f32]; 3],
+    [bx, by, bz]: [&[f32]; 3],
+    near: &mut [bool],
+) {
+    use crate::collide::Shape;
+    let cols = near.len();
+    let w = &w[..cols];
+    let (ax, ay, az) = (&ax[..cols], &ay[..cols], &az[..cols]);
+    let (bx, by, bz) = (&bx[..cols], &by[..cols], &bz[..cols]);
     near.fill(false);
-    for col in job.colliders {
+    for col in colliders {
         let (sphere, p, r, n) = match col.shape {
             Shape::Sphere { center, radius } => (true, center, radius, Vec3::Y),
             Shape::Plane { point, normal } => (false, point, 0.0, normal),
@@ -1037,7 +1060,7 @@ fn ccd_mask_soa(job: &Job<'_>, s: usize, a: &[Vec<f32>; 6], b: &[Vec<f32>; 6], n
         let tau = ccd::tolerance(col);
         // `resolve_in`'s start point in the collider's end pose (no turn): a + (p₁ − p₀).
         let pivot_end = col.shape.pivot();
-        let shift = pivot_end - (pivot_end - col.velocity * job.h);
+        let shift = pivot_end - (pivot_end - col.velocity * h);
         // Signed distance and normal (`Shape::distance`).
         let dist = |x: f32, y: f32, z: f32| -> (f32, [f32; 3]) {
             if sphere {

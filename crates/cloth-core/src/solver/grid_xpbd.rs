@@ -31,8 +31,17 @@
 //!    one-sided, inextensible constraint, coloured by `⌊r / s⌋` or `⌊c / s⌋`). They carry a
 //!    pull across `s` particles in one projection, which plain sweeps need `s` sweeps (or
 //!    substeps) for;
-//! 3. collider contacts with position-level Coulomb friction, per particle (the reference's
-//!    routine, [`super::xpbd::contact`]).
+//! 3. collider contacts with position-level Coulomb friction: the reference's routine
+//!    ([`super::xpbd::contact`]), on the arrays for spheres and planes that do not turn
+//!    ([`contact_soa`], every lane computed and selected, the same bits), per particle for
+//!    other colliders; chunks clear of every collider are skipped.
+//!
+//! The substep's state stays in structure-of-arrays form (x, y, z, vx, vy, vz and the start
+//! positions) from the first substep of a step to its end ([`XpbdGrid::sync`], called by the
+//! solver's `end_step`): the prediction, the sweeps, the velocities `(x − start)/h` and
+//! continuous collision ([`XpbdGrid::finish`]: the culls of the explicit path on the arrays,
+//! then the reference's per-particle routine on the candidates) all read and write the arrays,
+//! so no substep converts between `Vec3` and arrays.
 //!
 //! Every pass writes disjoint rows, so the rows are shared among the threads of the current
 //! rayon pool in any way and the result is the same bits for every thread count. The
@@ -106,6 +115,9 @@ pub(crate) struct XpbdGrid {
     chains: [Vec<f32>; 2],
     /// Whether each direction's blocks hold the current inverse masses and rest lengths.
     chain_statics: [bool; 2],
+    /// Whether `pos` and `vel` hold the state (from the first substep of a step to
+    /// [`XpbdGrid::sync`] at its end) rather than the particles.
+    resident: bool,
 }
 
 /// Whether the grid path runs XPBD's sweeps for these settings: a cloth built by the grid
@@ -137,6 +149,7 @@ impl XpbdGrid {
             && grid_triangles(topology, rows, cols);
         self.key = Some((rows, cols, springs, ok));
         self.chain_statics = [false; 2];
+        self.resident = false;
         self.levels_key = None;
         if ok {
             self.rows = rows;
@@ -215,22 +228,65 @@ impl XpbdGrid {
         }
     }
 
-    /// Stage 1 of an XPBD substep on the grid, rows in parallel, with the reference's
-    /// arithmetic in the reference's order (so the same bits): the external force of every
-    /// particle (weight, global damping, then its share of the air force of each adjacent
-    /// triangle in triangle order), then `v ← v + h·f/m`, `start ← x`, `x ← x + h·v`.
-    pub(crate) fn predict(&mut self, ctx: &mut SubstepCtx<'_>, start: &mut Vec<Vec3>) {
+    /// Loads the particles' positions and velocities into the arrays at the first substep of
+    /// a step (and whenever a substep left them, see [`Self::sync`]); from then on the state
+    /// stays in the arrays across the step's substeps. Also refreshes the inverse masses (they
+    /// change only between steps).
+    fn load(&mut self, p: &crate::particles::Particles) {
+        if self.resident {
+            return;
+        }
+        scatter(&p.position, &mut self.pos);
+        scatter(&p.velocity, &mut self.vel);
+        // The chain blocks keep their copy of the inverse masses until one changes.
+        if !self
+            .inv_mass
+            .iter()
+            .zip(&p.inv_mass)
+            .all(|(a, b)| a.to_bits() == b.to_bits())
+        {
+            self.inv_mass.copy_from_slice(&p.inv_mass);
+            self.chain_statics = [false; 2];
+        }
+        self.resident = true;
+    }
+
+    /// Writes the state kept in the arrays back to the particles (positions and velocities):
+    /// at the end of a step, and before a substep that leaves the grid path.
+    pub(crate) fn sync(&mut self, p: &mut crate::particles::Particles) {
+        if !self.resident {
+            return;
+        }
+        self.resident = false;
+        let ([x, y, z], [vx, vy, vz]) = (&self.pos, &self.vel);
+        p.position
+            .par_chunks_mut(self.cols)
+            .zip(p.velocity.par_chunks_mut(self.cols))
+            .enumerate()
+            .for_each(|(r, (pos, vel))| {
+                let i = r * self.cols;
+                for (c, (pos, vel)) in pos.iter_mut().zip(vel.iter_mut()).enumerate() {
+                    *pos = Vec3::new(x[i + c], y[i + c], z[i + c]);
+                    *vel = Vec3::new(vx[i + c], vy[i + c], vz[i + c]);
+                }
+            });
+    }
+
+    /// Stage 1 of an XPBD substep on the grid, rows in parallel, on the arrays, with the
+    /// reference's arithmetic in the reference's order (so the same bits): the external force
+    /// of every particle (weight, global damping, then its share of the air force of each
+    /// adjacent triangle in triangle order), then `v ← v + h·f/m`, `start ← x`, `x ← x + h·v`,
+    /// component by component as loops over the row that the compiler vectorises.
+    pub(crate) fn predict(&mut self, ctx: &mut SubstepCtx<'_>) {
         let cfg = ctx.config;
         let (rows, cols, h) = (self.rows, self.cols, ctx.h);
         let sw = cfg.forces;
         let gravity = if sw.gravity { cfg.gravity } else { Vec3::ZERO };
         let damping = if sw.damping { cfg.damping } else { 0.0 };
         let air = super::grid_kernel::air_active(cfg);
-        let p = &mut *ctx.particles;
-        start.resize(p.len(), Vec3::ZERO);
+        let p = &*ctx.particles;
+        self.load(p);
         if air {
-            scatter(&p.position, &mut self.pos);
-            scatter(&p.velocity, &mut self.vel);
             let coeff = AirCoefficients::of(cfg, ctx.wind);
             let kernel = crate::simd::kernel();
             let (x, v) = (&self.pos, &self.vel);
@@ -268,54 +324,57 @@ impl XpbdGrid {
                 });
         }
         let tri = &self.air;
-        p.position
-            .par_chunks_mut(cols)
-            .zip(p.velocity.par_chunks_mut(cols))
-            .zip(start.par_chunks_mut(cols))
-            .zip(p.mass.par_chunks(cols).zip(p.inv_mass.par_chunks(cols)))
+        let (mass, w) = (&p.mass[..], &self.inv_mass[..]);
+        let [x, y, z] = &mut self.pos;
+        let [vx, vy, vz] = &mut self.vel;
+        let [x0, y0, z0] = &mut self.prev;
+        x.par_chunks_mut(cols)
+            .zip(y.par_chunks_mut(cols))
+            .zip(z.par_chunks_mut(cols))
+            .zip(vx.par_chunks_mut(cols))
+            .zip(vy.par_chunks_mut(cols))
+            .zip(vz.par_chunks_mut(cols))
+            .zip(x0.par_chunks_mut(cols))
+            .zip(y0.par_chunks_mut(cols))
+            .zip(z0.par_chunks_mut(cols))
             .enumerate()
-            .for_each(|(r, (((x, v), x0), (m, w)))| {
-                for c in 0..cols {
-                    let mut f = m[c] * gravity - damping * v[c];
-                    if air {
-                        // Triangles with this corner, in triangle order: cell (r−1, c−1)'s
-                        // second, cell (r−1, c)'s two, cell (r, c−1)'s two, cell (r, c)'s
-                        // first.
-                        let t = |rr: usize, cc: usize, k: usize| {
-                            let j = rr * (cols - 1) + cc;
-                            Vec3::new(tri[k][0][j], tri[k][1][j], tri[k][2][j])
-                        };
-                        if r > 0 {
-                            if c > 0 {
-                                f += t(r - 1, c - 1, 1);
-                            }
-                            if c + 1 < cols {
-                                f += t(r - 1, c, 0);
-                                f += t(r - 1, c, 1);
-                            }
-                        }
-                        if r + 1 < rows {
-                            if c > 0 {
-                                f += t(r, c - 1, 0);
-                                f += t(r, c - 1, 1);
-                            }
-                            if c + 1 < cols {
-                                f += t(r, c, 0);
-                            }
-                        }
+            .for_each(|(r, ((((((((x, y), z), vx), vy), vz), x0), y0), z0))| {
+                let i = r * cols..(r + 1) * cols;
+                let (m, w) = (&mass[i.clone()], &w[i]);
+                let cells = |rr: usize, k: usize| {
+                    let j = rr * (cols - 1)..(rr + 1) * (cols - 1);
+                    [&tri[0][k][j.clone()], &tri[1][k][j]]
+                };
+                let lanes = [
+                    (x, vx, x0, gravity.x),
+                    (y, vy, y0, gravity.y),
+                    (z, vz, z0, gravity.z),
+                ];
+                for (k, (x, v, x0, g)) in lanes.into_iter().enumerate() {
+                    let lane = PredictLane {
+                        h,
+                        g,
+                        damping,
+                        m,
+                        w,
+                    };
+                    let up = (air && r > 0).then(|| cells(r - 1, k));
+                    let down = (air && r + 1 < rows).then(|| cells(r, k));
+                    match (up, down) {
+                        (Some(u), Some(d)) => lane.run::<true, true>(x, v, x0, u, d),
+                        (Some(u), None) => lane.run::<true, false>(x, v, x0, u, [&[], &[]]),
+                        (None, Some(d)) => lane.run::<false, true>(x, v, x0, [&[], &[]], d),
+                        (None, None) => lane.run::<false, false>(x, v, x0, [&[], &[]], [&[], &[]]),
                     }
-                    v[c] += (h * w[c]) * f;
-                    x0[c] = x[c];
-                    x[c] += h * v[c];
                 }
             });
     }
 
     /// Stages 2 and 3 of an XPBD substep on the grid: `iterations` sweeps (see the module
-    /// docs) from the predicted positions in `ctx.particles` and the substep's start positions
-    /// `start`, then the positions written back and the velocities `(x − start)/h`. Returns the
-    /// contact count of the last sweep.
-    pub(crate) fn sweeps(&mut self, ctx: &mut SubstepCtx<'_>, start: &[Vec3]) -> u32 {
+    /// docs) from the predicted positions, then the velocities `(x − start)/h`, all on the
+    /// arrays, then (when `ccd`) continuous collision against the colliders
+    /// ([`crate::collide::ccd`]). Writes the contact counts into `ctx.contacts`.
+    pub(crate) fn sweeps(&mut self, ctx: &mut SubstepCtx<'_>, ccd: bool) {
         let cfg = ctx.config;
         let settings = cfg.xpbd;
         let h = ctx.h;
@@ -325,19 +384,6 @@ impl XpbdGrid {
                 settings.hierarchy_slack,
                 ctx.rest,
             );
-        }
-        let p = &mut *ctx.particles;
-        scatter(&p.position, &mut self.pos);
-        scatter(start, &mut self.prev);
-        // The chain blocks keep their copy of the inverse masses until one changes.
-        if !self
-            .inv_mass
-            .iter()
-            .zip(&p.inv_mass)
-            .all(|(a, b)| a.to_bits() == b.to_bits())
-        {
-            self.inv_mass.copy_from_slice(&p.inv_mass);
-            self.chain_statics = [false; 2];
         }
         self.keep = settings.iterations > 1;
         if self.keep {
@@ -392,27 +438,10 @@ impl XpbdGrid {
             }
             contacts = self.contacts(ctx.colliders, h);
         }
-        // 3. positions back, velocities from positions (the reference's stage 3, in parallel).
-        let inv_h = 1.0 / h;
-        let cols = self.cols;
-        let p = &mut *ctx.particles;
-        let [x, y, z] = &self.pos;
-        p.position
-            .par_chunks_mut(cols)
-            .zip(p.velocity.par_chunks_mut(cols))
-            .zip(start.par_chunks(cols).zip(p.inv_mass.par_chunks(cols)))
-            .enumerate()
-            .for_each(|(r, ((pos, vel), (x0, w)))| {
-                let i0 = r * cols;
-                for c in 0..pos.len() {
-                    let i = i0 + c;
-                    pos[c] = Vec3::new(x[i], y[i], z[i]);
-                    if w[c] != 0.0 {
-                        vel[c] = (pos[c] - x0[c]) * inv_h;
-                    }
-                }
-            });
-        contacts
+        // 3. velocities from positions, and continuous collision.
+        ctx.contacts.contacts = contacts;
+        let ccd = if ccd { ctx.colliders } else { &[] };
+        ctx.contacts.ccd += self.finish(ccd, h);
     }
 
     /// The chain solves of the warp (`class` 0, one chain per column) or of the weft
@@ -636,11 +665,18 @@ impl XpbdGrid {
     }
 
     /// Collider contacts of every particle, rows in parallel. Returns the contact count.
+    ///
+    /// Chunks of [`NEAR_CHUNK`] particles clear of every collider ([`near_any`]) are skipped.
+    /// When every collider is a sphere or a plane that does not turn, a chunk's contacts run
+    /// on the arrays ([`contact_soa`], the per-particle routine's operations in every lane,
+    /// selected), else per particle ([`super::xpbd::contact`]); both give the same bits.
     fn contacts(&mut self, colliders: &[crate::collide::Collider], h: f32) -> u32 {
         if colliders.is_empty() {
             return 0;
         }
         let cols = self.cols;
+        let soa = soa_colliders(colliders);
+        let kernel = crate::simd::kernel();
         let (prev, w) = (&self.prev, &self.inv_mass);
         let [x, y, z] = &mut self.pos;
         x.par_chunks_mut(cols)
@@ -652,11 +688,34 @@ impl XpbdGrid {
                 let mut near = [false; NEAR_CHUNK];
                 for c0 in (0..x.len()).step_by(NEAR_CHUNK) {
                     let n = NEAR_CHUNK.min(x.len() - c0);
+                    let (row, all) = (c0..c0 + n, r * cols + c0..r * cols + c0 + n);
                     near_any(
                         colliders,
-                        [&x[c0..c0 + n], &y[c0..c0 + n], &z[c0..c0 + n]],
+                        [&x[row.clone()], &y[row.clone()], &z[row.clone()]],
                         &mut near[..n],
                     );
+                    if soa {
+                        if !near[..n].contains(&true) {
+                            continue;
+                        }
+                        let (x, y, z) = (&mut x[row.clone()], &mut y[row.clone()], &mut z[row]);
+                        let p0 = [
+                            &prev[0][all.clone()],
+                            &prev[1][all.clone()],
+                            &prev[2][all.clone()],
+                        ];
+                        for col in colliders {
+                            count += crate::simd::xpbd_contacts(
+                                kernel,
+                                col,
+                                h,
+                                &w[all.clone()],
+                                [&mut *x, &mut *y, &mut *z],
+                                p0,
+                            );
+                        }
+                        continue;
+                    }
                     for (k, &near) in near[..n].iter().enumerate() {
                         let (c, i) = (c0 + k, r * cols + c0 + k);
                         if !near || w[i] == 0.0 {
@@ -685,6 +744,305 @@ impl XpbdGrid {
             })
             .sum()
     }
+
+    /// The end of a substep on the arrays, rows in parallel: the velocities from the
+    /// positions, `v ← (x − start)/h` for free particles (the reference's stage 3), then
+    /// continuous collision against `colliders` (empty: none):
+    /// [`crate::collide::ccd::resolve_in`], the reference's per-particle routine, on the
+    /// particles gathered as `Vec3` in runs, so the same bits as the reference's pass over all
+    /// the particles (each particle is handled on its own). When every collider is a sphere or a
+    /// plane that does not turn, [`super::grid_kernel::ccd_mask`]'s culls on the arrays pick
+    /// the candidates first and only they are gathered. Returns the number of particles that
+    /// continuous collision corrected.
+    fn finish(&mut self, colliders: &[crate::collide::Collider], h: f32) -> u32 {
+        use crate::collide::ccd;
+        let cols = self.cols;
+        let inv_h = 1.0 / h;
+        let masked = soa_colliders(colliders);
+        let (prev, w) = (&self.prev, &self.inv_mass);
+        let [x, y, z] = &mut self.pos;
+        let [vx, vy, vz] = &mut self.vel;
+        x.par_chunks_mut(cols)
+            .zip(y.par_chunks_mut(cols))
+            .zip(z.par_chunks_mut(cols))
+            .zip(vx.par_chunks_mut(cols))
+            .zip(vy.par_chunks_mut(cols))
+            .zip(vz.par_chunks_mut(cols))
+            .enumerate()
+            .map(|(r, (((((x, y), z), vx), vy), vz))| {
+                let all = r * cols..(r + 1) * cols;
+                let w = &w[all.clone()];
+                for (v, (x, x0)) in [
+                    (&mut *vx, (&*x, &prev[0][all.clone()])),
+                    (&mut *vy, (&*y, &prev[1][all.clone()])),
+                    (&mut *vz, (&*z, &prev[2][all])),
+                ] {
+                    for (((v, &x), &x0), &w) in v.iter_mut().zip(x).zip(x0).zip(w) {
+                        // A select, not a branch, so the loop vectorises.
+                        *v = if w != 0.0 { (x - x0) * inv_h } else { *v };
+                    }
+                }
+                let mut count = 0;
+                if colliders.is_empty() {
+                    return count;
+                }
+                let mut near = [true; NEAR_CHUNK];
+                let mut a = [Vec3::ZERO; NEAR_CHUNK];
+                let mut p = [Vec3::ZERO; NEAR_CHUNK];
+                let mut v = [Vec3::ZERO; NEAR_CHUNK];
+                for c0 in (0..cols).step_by(NEAR_CHUNK) {
+                    let n = NEAR_CHUNK.min(cols - c0);
+                    let i0 = r * cols + c0;
+                    let (row, all) = (c0..c0 + n, i0..i0 + n);
+                    if masked {
+                        super::grid_kernel::ccd_mask(
+                            colliders,
+                            h,
+                            &w[row.clone()],
+                            [&prev[0][all.clone()], &prev[1][all.clone()], &prev[2][all]],
+                            [&x[row.clone()], &y[row.clone()], &z[row]],
+                            &mut near[..n],
+                        );
+                    }
+                    // Runs of candidates k .. l, gathered, resolved and written back.
+                    let mut k = 0;
+                    while k < n {
+                        if !near[k] {
+                            k += 1;
+                            continue;
+                        }
+                        let mut l = k + 1;
+                        while l < n && near[l] {
+                            l += 1;
+                        }
+                        for j in k..l {
+                            let (c, i) = (c0 + j, i0 + j);
+                            a[j] = Vec3::new(prev[0][i], prev[1][i], prev[2][i]);
+                            p[j] = Vec3::new(x[c], y[c], z[c]);
+                            v[j] = Vec3::new(vx[c], vy[c], vz[c]);
+                        }
+                        count += ccd::resolve_in(
+                            colliders,
+                            &a[k..l],
+                            &mut p[k..l],
+                            &mut v[k..l],
+                            &w[c0 + k..c0 + l],
+                            h,
+                        );
+                        for j in k..l {
+                            let c = c0 + j;
+                            (x[c], y[c], z[c]) = (p[j].x, p[j].y, p[j].z);
+                            (vx[c], vy[c], vz[c]) = (v[j].x, v[j].y, v[j].z);
+                        }
+                        k = l;
+                    }
+                }
+                count
+            })
+            .sum()
+    }
+}
+
+/// One component of [`XpbdGrid::predict`] on one row of particles.
+struct PredictLane<'a> {
+    /// Substep, s.
+    h: f32,
+    /// This component of gravity, m/s².
+    g: f32,
+    /// Global damping, kg/s.
+    damping: f32,
+    /// Masses and inverse masses of the row.
+    m: &'a [f32],
+    w: &'a [f32],
+}
+
+impl PredictLane<'_> {
+    /// Predicts one component `x`, `v` of the row (and saves the old `x` in `x0`): the weight
+    /// and damping, then when `UP` the air shares of the cell row above (`u0`, `u1`: its first
+    /// and second triangles, `cols − 1` each) and when `DOWN` those of the cell row below, in
+    /// the reference's triangle order. The edge columns, which have fewer triangles, are done
+    /// apart, so the loop over the inner columns has no branch and vectorises.
+    #[inline(always)]
+    fn run<const UP: bool, const DOWN: bool>(
+        &self,
+        x: &mut [f32],
+        v: &mut [f32],
+        x0: &mut [f32],
+        [u0, u1]: [&[f32]; 2],
+        [d0, d1]: [&[f32]; 2],
+    ) {
+        let n = x.len();
+        let (h, g, d) = (self.h, self.g, self.damping);
+        let (m, w, v, x0) = (&self.m[..n], &self.w[..n], &mut v[..n], &mut x0[..n]);
+        let integrate = |f: f32, w: f32, x: &mut f32, v: &mut f32, x0: &mut f32| {
+            *v += (h * w) * f;
+            *x0 = *x;
+            *x += h * *v;
+        };
+        // Column 0: the cells to its right only.
+        let mut f = m[0] * g - d * v[0];
+        if UP {
+            f += u0[0];
+            f += u1[0];
+        }
+        if DOWN {
+            f += d0[0];
+        }
+        integrate(f, w[0], &mut x[0], &mut v[0], &mut x0[0]);
+        // Last column: the cells to its left only.
+        let l = n - 1;
+        let mut f = m[l] * g - d * v[l];
+        if UP {
+            f += u1[l - 1];
+        }
+        if DOWN {
+            f += d0[l - 1];
+            f += d1[l - 1];
+        }
+        integrate(f, w[l], &mut x[l], &mut v[l], &mut x0[l]);
+        // Inner columns c = 1 ..= n − 2, at index i = c − 1 of slices starting at column 1.
+        let k = n - 2;
+        let (m, w) = (&m[1..][..k], &w[1..][..k]);
+        let (x, v, x0) = (&mut x[1..][..k], &mut v[1..][..k], &mut x0[1..][..k]);
+        let empty: &[f32] = &[];
+        let (ul1, ur0, ur1) = if UP {
+            (&u1[..k], &u0[1..][..k], &u1[1..][..k])
+        } else {
+            (empty, empty, empty)
+        };
+        let (dl0, dl1, dr0) = if DOWN {
+            (&d0[..k], &d1[..k], &d0[1..][..k])
+        } else {
+            (empty, empty, empty)
+        };
+        for i in 0..k {
+            let mut f = m[i] * g - d * v[i];
+            if UP {
+                f += ul1[i];
+                f += ur0[i];
+                f += ur1[i];
+            }
+            if DOWN {
+                f += dl0[i];
+                f += dl1[i];
+                f += dr0[i];
+            }
+            v[i] += (h * w[i]) * f;
+            x0[i] = x[i];
+            x[i] += h * v[i];
+        }
+    }
+}
+
+/// Whether every collider is a sphere or a plane that does not turn (the shapes the passes
+/// on the arrays handle: [`contact_soa`], [`super::grid_kernel::ccd_mask`]).
+fn soa_colliders(colliders: &[crate::collide::Collider]) -> bool {
+    use crate::collide::Shape;
+    colliders.iter().all(|c| {
+        c.angular_velocity == Vec3::ZERO
+            && matches!(c.shape, Shape::Sphere { .. } | Shape::Plane { .. })
+    })
+}
+
+/// [`super::xpbd::contact`] with collider `col` (a sphere or a plane that does not turn) for
+/// every free particle of a run (positions `x`, `y`, `z` updated in place, start positions
+/// `p0`, inverse masses `w`): the same operations in the same order (`Shape::distance`, the
+/// push, Coulomb friction on the tangential displacement), computed in every lane and
+/// selected, so the bits are the per-particle routine's. Returns the number of contacts.
+#[inline(always)]
+pub(crate) fn contact_soa(
+    col: &crate::collide::Collider,
+    h: f32,
+    w: &[f32],
+    x: [&mut [f32]; 3],
+    x0: [&[f32]; 3],
+) -> u32 {
+    use crate::collide::Shape;
+    match col.shape {
+        Shape::Sphere { center, radius } => {
+            contact_lanes::<true>(col, center, radius, Vec3::Y, h, w, x, x0)
+        }
+        Shape::Plane { point, normal } => {
+            contact_lanes::<false>(col, point, 0.0, normal, h, w, x, x0)
+        }
+        _ => unreachable!("soa_colliders holds only spheres and planes"),
+    }
+}
+
+/// [`contact_soa`] for a sphere (`SPHERE`: centre `p`, radius `r`) or a plane (point `p`,
+/// unit normal `nrm`), as one branch-free loop.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn contact_lanes<const SPHERE: bool>(
+    col: &crate::collide::Collider,
+    p: Vec3,
+    r: f32,
+    nrm: Vec3,
+    h: f32,
+    w: &[f32],
+    [x, y, z]: [&mut [f32]; 3],
+    [x0, y0, z0]: [&[f32]; 3],
+) -> u32 {
+    let n = w.len();
+    let (x, y, z) = (&mut x[..n], &mut y[..n], &mut z[..n]);
+    let (x0, y0, z0) = (&x0[..n], &y0[..n], &z0[..n]);
+    let (th, mu_s, mu_k) = (
+        col.thickness,
+        col.friction.static_coefficient,
+        col.friction.kinetic_coefficient,
+    );
+    // `velocity_at(x) * h` of a collider that does not turn.
+    let vh = col.velocity * h;
+    let mut count = 0;
+    for i in 0..n {
+        let (px, py, pz) = (x[i], y[i], z[i]);
+        // `Shape::distance`.
+        let (dist, nx, ny, nz) = if SPHERE {
+            let (dx, dy, dz) = (px - p.x, py - p.y, pz - p.z);
+            let len = (dx * dx + dy * dy + dz * dz).sqrt();
+            let pos = len > 0.0;
+            (
+                len - r,
+                if pos { dx / len } else { 0.0 },
+                if pos { dy / len } else { 1.0 },
+                if pos { dz / len } else { 0.0 },
+            )
+        } else {
+            let d = (px - p.x) * nrm.x + (py - p.y) * nrm.y + (pz - p.z) * nrm.z;
+            (d, nrm.x, nrm.y, nrm.z)
+        };
+        let phi = dist - th;
+        let touch = !(phi >= 0.0) && w[i] != 0.0;
+        let push = -phi;
+        let (qx, qy, qz) = (px + push * nx, py + push * ny, pz + push * nz);
+        let (rx, ry, rz) = (
+            (qx - x0[i]) - vh.x,
+            (qy - y0[i]) - vh.y,
+            (qz - z0[i]) - vh.z,
+        );
+        let rn = rx * nx + ry * ny + rz * nz;
+        let (tx, ty, tz) = (rx - rn * nx, ry - rn * ny, rz - rn * nz);
+        let t_len = (tx * tx + ty * ty + tz * tz).sqrt();
+        // Static: the whole tangential displacement goes (`x − t`, computed as `x − t·1`,
+        // the same bits); kinetic: `x − t·min(μk·push/|t|, 1)`; nothing when `|t|` is 0 (or
+        // NaN), as in the per-particle routine.
+        let stat = t_len <= mu_s * push;
+        let s = if stat {
+            1.0
+        } else {
+            (mu_k * push / t_len).min(1.0)
+        };
+        let slide = stat || t_len > 0.0;
+        let (fx, fy, fz) = if slide {
+            (qx - tx * s, qy - ty * s, qz - tz * s)
+        } else {
+            (qx, qy, qz)
+        };
+        // Stored in every lane (a select, not a branch), so the loop vectorises.
+        (x[i], y[i], z[i]) = if touch { (fx, fy, fz) } else { (px, py, pz) };
+        count += u32::from(touch);
+    }
+    count
 }
 
 /// A cheap test that `p` is clear of a sphere's or a plane's contact layer by more than

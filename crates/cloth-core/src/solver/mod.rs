@@ -100,6 +100,7 @@ impl Solver {
             &mut particles.position,
             &mut particles.velocity,
         );
+        self.xpbd.grid.sync(particles);
     }
 
     /// The solver figures of the step so far.
@@ -125,8 +126,8 @@ impl Solver {
             self.start.clear();
             self.start.extend_from_slice(&ctx.particles.position);
         }
-        self.integrate(integrator, grid, &mut ctx);
-        if ccd {
+        let ccd_done = self.integrate(integrator, grid, &mut ctx, ccd);
+        if ccd && !ccd_done {
             let start = if xpbd { self.xpbd.start() } else { &self.start };
             ctx.contacts.ccd +=
                 crate::collide::ccd::resolve(ctx.colliders, start, ctx.particles, ctx.h);
@@ -140,12 +141,14 @@ impl Solver {
         }
     }
 
+    /// Stepping proper; returns whether it also ran continuous collision (`ccd`).
     fn integrate(
         &mut self,
         integrator: Integrator,
         grid: Option<grid_kernel::Plan>,
         ctx: &mut SubstepCtx<'_>,
-    ) {
+        ccd: bool,
+    ) -> bool {
         match integrator {
             _ if grid.is_some() => grid_kernel::run(ctx, &mut self.grid, grid, &mut self.force),
             Integrator::ForwardEuler => explicit::forward_euler(ctx, &mut self.force),
@@ -160,8 +163,7 @@ impl Solver {
             }
             Integrator::Xpbd => {
                 self.stats.iterations = ctx.config.xpbd.iterations;
-                xpbd::substep(ctx, &mut self.force, &mut self.xpbd, &mut self.hash);
-                return;
+                return xpbd::substep(ctx, &mut self.force, &mut self.xpbd, &mut self.hash, ccd);
             }
         }
         if let Some(limit) = ctx.config.strain_limit {
@@ -176,6 +178,7 @@ impl Solver {
                 true,
             );
         }
+        false
     }
 
     /// Self-contact pairs closer than `reach` (and than their rest distance) among the

@@ -143,13 +143,15 @@ impl XpbdScratch {
     }
 }
 
-/// One XPBD substep.
+/// One XPBD substep. With `ccd`, the grid path also runs continuous collision on its arrays
+/// and returns `true`; otherwise the caller runs it (from [`XpbdScratch::start`]).
 pub(super) fn substep(
     ctx: &mut SubstepCtx<'_>,
     force: &mut [Vec3],
     sc: &mut XpbdScratch,
     hash: &mut crate::collide::self_collision::SelfCollisionScratch,
-) {
+    ccd: bool,
+) -> bool {
     let h = ctx.h;
     let cfg = ctx.config;
     let settings = cfg.xpbd;
@@ -160,8 +162,10 @@ pub(super) fn substep(
         && super::grid_xpbd::applies(cfg, ctx.topology, &ctx.particles.inv_mass)
         && sc.grid.prepare(ctx.topology, ctx.particles.len());
     if grid {
-        sc.grid.predict(ctx, &mut sc.prev);
+        sc.grid.predict(ctx);
     } else {
+        // The grid path keeps the state in its arrays during a step: back to the particles.
+        sc.grid.sync(ctx.particles);
         let mut ext = *cfg;
         ext.forces.springs = false;
         ext.forces.dashpots = false;
@@ -185,9 +189,9 @@ pub(super) fn substep(
 
     // 2. constraint sweeps: on the grid path when it applies.
     if grid {
-        // Stages 2 and 3.
-        ctx.contacts.contacts = sc.grid.sweeps(ctx, &sc.prev);
-        return;
+        // Stages 2 and 3 (and continuous collision), on the arrays.
+        sc.grid.sweeps(ctx, ccd);
+        return true;
     }
     reference_sweeps(ctx, sc, hash);
 
@@ -204,6 +208,7 @@ pub(super) fn substep(
             *v = (x - x0) * inv_h;
         }
     }
+    false
 }
 
 /// Stage 2 on the reference path: `iterations` sweeps in storage order.
