@@ -80,63 +80,120 @@ pub(crate) struct Instability {
     pub reason: String,
 }
 
+/// Fewest particles (or springs) per chunk of [`measure`]'s passes, and most chunks per pass:
+/// the partition depends only on the count, so the sums are the same bits for any number of
+/// threads, and the partial results fit in an array on the stack (no allocation in a step).
+const MEASURE_CHUNK: usize = 4096;
+const MEASURE_CHUNKS: usize = 64;
+
+/// The chunk length of a pass over `n` items.
+fn chunk_len(n: usize) -> usize {
+    MEASURE_CHUNK.max(n.div_ceil(MEASURE_CHUNKS))
+}
+
+/// What [`measure`] gathers from one chunk.
+#[derive(Clone, Copy, Default)]
+struct Partial {
+    /// Energy sums of the chunk, J.
+    energy: [f64; 2],
+    /// Deepest penetration or largest strain of the chunk.
+    max: f32,
+    /// Index (within the pass) of the chunk's first bad particle or spring.
+    bad: Option<usize>,
+}
+
+impl Partial {
+    /// The chunks' results in chunk order: sums added in that order (from zero), maxima (from
+    /// `init`), the first bad.
+    fn fold(parts: impl IntoIterator<Item = Self>, init: f32) -> Self {
+        parts.into_iter().fold(
+            Self {
+                max: init,
+                ..Self::default()
+            },
+            |a, b| Self {
+                energy: [a.energy[0] + b.energy[0], a.energy[1] + b.energy[1]],
+                max: a.max.max(b.max),
+                bad: a.bad.or(b.bad),
+            },
+        )
+    }
+}
+
 /// Measures the state and checks it against the stability limits.
+///
+/// Two passes, each over fixed chunks ([`chunk_len`]) in parallel with the partial
+/// results combined in chunk order (so the same bits for any thread count): the particles
+/// (energies, non-finite state, speed limit, penetration), then the springs kind by kind
+/// (elastic energy, strain, stretch limit). The instability reported is the first in that
+/// order: the lowest-numbered bad particle, else the first overstretched spring.
 pub(crate) fn measure(
     config: &SimConfig,
     topology: &Topology,
     particles: &Particles,
     colliders: &[Collider],
 ) -> (StepStats, Option<Instability>) {
+    use rayon::prelude::*;
     let mut stats = StepStats::default();
-    let mut bad: Option<Instability> = None;
     let g = if config.forces.gravity {
         config.gravity
     } else {
         Vec3::ZERO
     };
     let max_speed_sq = config.limits.max_speed * config.limits.max_speed;
-    for (i, ((&x, &v), &m)) in particles
-        .position
-        .iter()
-        .zip(&particles.velocity)
-        .zip(&particles.mass)
+    let p = particles;
+    let bad_particle =
+        |x: Vec3, v: Vec3| !x.is_finite() || !v.is_finite() || v.length_squared() > max_speed_sq;
+    let mut parts = [Partial::default(); MEASURE_CHUNKS];
+    let len = chunk_len(p.len());
+    let used = p.len().div_ceil(len);
+    parts[..used]
+        .par_iter_mut()
+        .zip(p.position.par_chunks(len))
+        .zip(p.velocity.par_chunks(len))
+        .zip(p.mass.par_chunks(len))
+        .zip(p.inv_mass.par_chunks(len))
         .enumerate()
-    {
-        if bad.is_none() {
-            if !x.is_finite() {
-                bad = Some(Instability {
-                    particle: i as u32,
-                    reason: format!("position became non-finite ({x})"),
-                });
-            } else if !v.is_finite() {
-                bad = Some(Instability {
-                    particle: i as u32,
-                    reason: format!("velocity became non-finite ({v})"),
-                });
-            } else if v.length_squared() > max_speed_sq {
-                bad = Some(Instability {
-                    particle: i as u32,
-                    reason: format!(
-                        "speed {:.4e} m/s exceeds the limit of {} m/s",
-                        v.length(),
-                        config.limits.max_speed
-                    ),
-                });
+        .for_each(|(chunk, ((((part, x), v), m), w))| {
+            for (k, ((&x, &v), &m)) in x.iter().zip(v).zip(m).enumerate() {
+                if part.bad.is_none() && bad_particle(x, v) {
+                    part.bad = Some(chunk * len + k);
+                }
+                let m = f64::from(m);
+                part.energy[0] += 0.5 * m * f64::from(v.length_squared());
+                part.energy[1] -= m * f64::from(g.dot(x));
             }
+            for (&x, &w) in x.iter().zip(w) {
+                if w == 0.0 {
+                    continue;
+                }
+                for c in colliders {
+                    let (dist, _) = c.shape.distance(x);
+                    part.max = part.max.max(c.thickness - dist);
+                }
+            }
+        });
+    let total = Partial::fold(parts[..used].iter().copied(), stats.max_penetration);
+    [stats.kinetic_energy, stats.gravitational_energy] = total.energy;
+    stats.max_penetration = total.max;
+    let mut bad = total.bad.map(|i| {
+        let (x, v) = (p.position[i], p.velocity[i]);
+        let reason = if !x.is_finite() {
+            format!("position became non-finite ({x})")
+        } else if !v.is_finite() {
+            format!("velocity became non-finite ({v})")
+        } else {
+            format!(
+                "speed {:.4e} m/s exceeds the limit of {} m/s",
+                v.length(),
+                config.limits.max_speed
+            )
+        };
+        Instability {
+            particle: i as u32,
+            reason,
         }
-        let m = f64::from(m);
-        stats.kinetic_energy += 0.5 * m * f64::from(v.length_squared());
-        stats.gravitational_energy -= m * f64::from(g.dot(x));
-    }
-    for (i, &x) in particles.position.iter().enumerate() {
-        if particles.inv_mass[i] == 0.0 {
-            continue;
-        }
-        for c in colliders {
-            let (dist, _) = c.shape.distance(x);
-            stats.max_penetration = stats.max_penetration.max(c.thickness - dist);
-        }
-    }
+    });
     for kind in SpringKind::ALL {
         let k = f64::from(if config.forces.springs {
             config.material.params(kind).stiffness
@@ -144,25 +201,45 @@ pub(crate) fn measure(
             0.0
         });
         let class = kind.class() as usize;
-        for s in topology.springs_of(kind) {
-            let len = particles.position[s.a as usize].distance(particles.position[s.b as usize]);
-            let stretch = len - s.rest_length;
-            stats.spring_energy += 0.5 * k * f64::from(stretch) * f64::from(stretch);
-            let strain = stretch / s.rest_length;
-            stats.max_strain[class] = stats.max_strain[class].max(strain);
-            if bad.is_none() && len > config.limits.max_stretch_ratio * s.rest_length {
-                bad = Some(Instability {
-                    particle: s.a,
-                    reason: format!(
-                        "its {} spring to particle {} is stretched to {:.3}× its rest length \
-                         (limit {}×)",
-                        kind.name(),
-                        s.b,
-                        len / s.rest_length,
-                        config.limits.max_stretch_ratio
-                    ),
-                });
-            }
+        let limit = config.limits.max_stretch_ratio;
+        let springs = topology.springs_of(kind);
+        let mut parts = [Partial::default(); MEASURE_CHUNKS];
+        let len = chunk_len(springs.len());
+        let used = springs.len().div_ceil(len);
+        parts[..used]
+            .par_iter_mut()
+            .zip(springs.par_chunks(len))
+            .enumerate()
+            .for_each(|(chunk, (part, springs))| {
+                for (j, s) in springs.iter().enumerate() {
+                    let length = p.position[s.a as usize].distance(p.position[s.b as usize]);
+                    let stretch = length - s.rest_length;
+                    part.energy[0] += 0.5 * k * f64::from(stretch) * f64::from(stretch);
+                    part.max = part.max.max(stretch / s.rest_length);
+                    if part.bad.is_none() && length > limit * s.rest_length {
+                        part.bad = Some(chunk * len + j);
+                    }
+                }
+            });
+        let total = Partial::fold(parts[..used].iter().copied(), stats.max_strain[class]);
+        stats.spring_energy += total.energy[0];
+        stats.max_strain[class] = total.max;
+        if bad.is_none()
+            && let Some(j) = total.bad
+        {
+            let s = springs[j];
+            let len = p.position[s.a as usize].distance(p.position[s.b as usize]);
+            bad = Some(Instability {
+                particle: s.a,
+                reason: format!(
+                    "its {} spring to particle {} is stretched to {:.3}× its rest length \
+                     (limit {}×)",
+                    kind.name(),
+                    s.b,
+                    len / s.rest_length,
+                    limit
+                ),
+            });
         }
     }
     (stats, bad)
