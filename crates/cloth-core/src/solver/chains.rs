@@ -322,9 +322,14 @@ pub(crate) fn gather<const L: usize>(
         let Some(src) = src else { continue };
         let dst = &mut chunk[f * size..(f + 1) * size];
         if class == 0 {
-            for (k, dst) in dst.chunks_exact_mut(L).enumerate() {
+            for (k, dst) in dst.as_chunks_mut::<L>().0.iter_mut().enumerate() {
                 let i = at(class, cols, first, k);
-                dst[..lanes].copy_from_slice(&src[i..i + lanes]);
+                if lanes == L {
+                    // A whole block: a copy of known length, inlined (no `memcpy` call per step).
+                    *dst = *src[i..].first_chunk::<L>().expect("L entries");
+                } else {
+                    dst[..lanes].copy_from_slice(&src[i..i + lanes]);
+                }
             }
         } else {
             // A transpose, in tiles of TILE steps (each tile's rows stay in L1).

@@ -506,8 +506,14 @@ impl XpbdGrid {
                         for (b, block) in scratch.chunks_exact(FIELDS * size).enumerate() {
                             let first = b * LANES;
                             let lanes = LANES.min(count - first);
-                            let src = &block[field * size + i * LANES..][..lanes];
-                            dst[first..first + lanes].copy_from_slice(src);
+                            let src = &block[field * size + i * LANES..];
+                            if lanes == LANES {
+                                // Of known length: inlined, no `memcpy` call per step.
+                                let dst = dst[first..].first_chunk_mut::<LANES>().expect("lanes");
+                                *dst = *src.first_chunk::<LANES>().expect("lanes");
+                            } else {
+                                dst[first..first + lanes].copy_from_slice(&src[..lanes]);
+                            }
                         }
                     } else {
                         let block = &scratch[i * FIELDS * size..][..FIELDS * size];
