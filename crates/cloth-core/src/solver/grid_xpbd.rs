@@ -39,9 +39,10 @@
 //! The substep's state stays in structure-of-arrays form (x, y, z, vx, vy, vz and the start
 //! positions) from the first substep of a step to its end ([`XpbdGrid::sync`], called by the
 //! solver's `end_step`): the prediction, the sweeps, the velocities `(x − start)/h` and
-//! continuous collision ([`XpbdGrid::finish`]: the culls of the explicit path on the arrays,
-//! then the reference's per-particle routine on the candidates) all read and write the arrays,
-//! so no substep converts between `Vec3` and arrays.
+//! continuous collision all read and write the arrays, so no substep converts between `Vec3`
+//! and arrays. The last sweep's contacts, the velocities and continuous collision run as one
+//! pass, row by row ([`XpbdGrid::finish`]; continuous collision takes the culls of the
+//! explicit path on the arrays, then the reference's per-particle routine on the candidates).
 //!
 //! Every pass writes disjoint rows, so the rows are shared among the threads of the current
 //! rayon pool in any way and the result is the same bits for every thread count. The
@@ -398,8 +399,7 @@ impl XpbdGrid {
                 .map(|(alpha, gamma)| Mode::Compliant { alpha, gamma })
         });
 
-        let mut contacts = 0;
-        for _ in 0..settings.iterations {
+        for sweep in 0..settings.iterations {
             // With chains the structural springs go last (after shear and bend): the stiffest
             // constraints, solved exactly per chain, end the sweep.
             let order: [usize; 6] = if settings.chains {
@@ -436,12 +436,16 @@ impl XpbdGrid {
                     }
                 }
             }
-            contacts = self.contacts(ctx.colliders, h);
+            // The last sweep's contacts run row by row inside `finish` (one pass fewer).
+            if sweep + 1 < settings.iterations {
+                self.contacts(ctx.colliders, h);
+            }
         }
-        // 3. velocities from positions, and continuous collision.
-        ctx.contacts.contacts = contacts;
+        // The last sweep's contacts, 3. velocities from positions, and continuous collision.
         let ccd = if ccd { ctx.colliders } else { &[] };
-        ctx.contacts.ccd += self.finish(ccd, h);
+        let (contacts, corrected) = self.finish(ctx.colliders, ccd, h);
+        ctx.contacts.contacts = contacts;
+        ctx.contacts.ccd += corrected;
     }
 
     /// The chain solves of the warp (`class` 0, one chain per column) or of the weft
@@ -670,7 +674,8 @@ impl XpbdGrid {
         self.put_lambda(which, lambda);
     }
 
-    /// Collider contacts of every particle, rows in parallel. Returns the contact count.
+    /// Collider contacts of every particle, rows in parallel (every sweep but the last, whose
+    /// contacts run in [`Self::finish`]). Returns the contact count.
     ///
     /// Chunks of [`NEAR_CHUNK`] particles clear of every collider ([`near_any`]) are skipped.
     /// When every collider is a sphere or a plane that does not turn, a chunk's contacts run
@@ -681,8 +686,7 @@ impl XpbdGrid {
             return 0;
         }
         let cols = self.cols;
-        let soa = soa_colliders(colliders);
-        let kernel = crate::simd::kernel();
+        let contacts = RowContacts::new(colliders, h);
         let (prev, w) = (&self.prev, &self.inv_mass);
         let [x, y, z] = &mut self.pos;
         x.par_chunks_mut(cols)
@@ -690,81 +694,38 @@ impl XpbdGrid {
             .zip(z.par_chunks_mut(cols))
             .enumerate()
             .map(|(r, ((x, y), z))| {
-                let mut count = 0;
-                let mut near = [false; NEAR_CHUNK];
-                for c0 in (0..x.len()).step_by(NEAR_CHUNK) {
-                    let n = NEAR_CHUNK.min(x.len() - c0);
-                    let (row, all) = (c0..c0 + n, r * cols + c0..r * cols + c0 + n);
-                    near_any(
-                        colliders,
-                        [&x[row.clone()], &y[row.clone()], &z[row.clone()]],
-                        &mut near[..n],
-                    );
-                    if soa {
-                        if !near[..n].contains(&true) {
-                            continue;
-                        }
-                        let (x, y, z) = (&mut x[row.clone()], &mut y[row.clone()], &mut z[row]);
-                        let p0 = [
-                            &prev[0][all.clone()],
-                            &prev[1][all.clone()],
-                            &prev[2][all.clone()],
-                        ];
-                        for col in colliders {
-                            count += crate::simd::xpbd_contacts(
-                                kernel,
-                                col,
-                                h,
-                                &w[all.clone()],
-                                [&mut *x, &mut *y, &mut *z],
-                                p0,
-                            );
-                        }
-                        continue;
-                    }
-                    for (k, &near) in near[..n].iter().enumerate() {
-                        let (c, i) = (c0 + k, r * cols + c0 + k);
-                        if !near || w[i] == 0.0 {
-                            continue;
-                        }
-                        let mut p = Vec3::new(x[c], y[c], z[c]);
-                        let p0 = Vec3::new(prev[0][i], prev[1][i], prev[2][i]);
-                        let mut touched = false;
-                        for col in colliders {
-                            if surely_clear(col, p) {
-                                continue;
-                            }
-                            if super::xpbd::contact(col, &mut p, p0, h) {
-                                touched = true;
-                                count += 1;
-                            }
-                        }
-                        if touched {
-                            x[c] = p.x;
-                            y[c] = p.y;
-                            z[c] = p.z;
-                        }
-                    }
-                }
-                count
+                let all = r * cols..(r + 1) * cols;
+                let p0 = [
+                    &prev[0][all.clone()],
+                    &prev[1][all.clone()],
+                    &prev[2][all.clone()],
+                ];
+                contacts.row([x, y, z], p0, &w[all])
             })
             .sum()
     }
 
-    /// The end of a substep on the arrays, rows in parallel: the velocities from the
+    /// The end of a substep on the arrays, rows in parallel, each row on its own: the last
+    /// sweep's contacts with `contact` (as [`Self::contacts`]), the velocities from the
     /// positions, `v ← (x − start)/h` for free particles (the reference's stage 3), then
     /// continuous collision against `colliders` (empty: none):
     /// [`crate::collide::ccd::resolve_in`], the reference's per-particle routine, on the
     /// particles gathered as `Vec3` in runs, so the same bits as the reference's pass over all
     /// the particles (each particle is handled on its own). When every collider is a sphere or a
     /// plane that does not turn, [`super::grid_kernel::ccd_mask`]'s culls on the arrays pick
-    /// the candidates first and only they are gathered. Returns the number of particles that
-    /// continuous collision corrected.
-    fn finish(&mut self, colliders: &[crate::collide::Collider], h: f32) -> u32 {
+    /// the candidates first and only they are gathered. Returns the contact count and the
+    /// number of particles that continuous collision corrected.
+    fn finish(
+        &mut self,
+        contact: &[crate::collide::Collider],
+        colliders: &[crate::collide::Collider],
+        h: f32,
+    ) -> (u32, u32) {
         use crate::collide::ccd;
         let cols = self.cols;
         let inv_h = 1.0 / h;
         let masked = soa_colliders(colliders);
+        let contacts = RowContacts::new(contact, h);
         let (prev, w) = (&self.prev, &self.inv_mass);
         let [x, y, z] = &mut self.pos;
         let [vx, vy, vz] = &mut self.vel;
@@ -778,6 +739,16 @@ impl XpbdGrid {
             .map(|(r, (((((x, y), z), vx), vy), vz))| {
                 let all = r * cols..(r + 1) * cols;
                 let w = &w[all.clone()];
+                let p0 = [
+                    &prev[0][all.clone()],
+                    &prev[1][all.clone()],
+                    &prev[2][all.clone()],
+                ];
+                let touched = if contact.is_empty() {
+                    0
+                } else {
+                    contacts.row([&mut *x, &mut *y, &mut *z], p0, w)
+                };
                 for (v, (x, x0)) in [
                     (&mut *vx, (&*x, &prev[0][all.clone()])),
                     (&mut *vy, (&*y, &prev[1][all.clone()])),
@@ -790,7 +761,7 @@ impl XpbdGrid {
                 }
                 let mut count = 0;
                 if colliders.is_empty() {
-                    return count;
+                    return (touched, count);
                 }
                 let mut near = [true; NEAR_CHUNK];
                 let mut a = [Vec3::ZERO; NEAR_CHUNK];
@@ -843,9 +814,96 @@ impl XpbdGrid {
                         k = l;
                     }
                 }
-                count
+                (touched, count)
             })
-            .sum()
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+    }
+}
+
+/// The contact pass of one row ([`XpbdGrid::contacts`], and the last sweep's inside
+/// [`XpbdGrid::finish`]): chunks clear of every collider skipped, the rest on the arrays or
+/// per particle.
+struct RowContacts<'a> {
+    colliders: &'a [crate::collide::Collider],
+    h: f32,
+    /// Every collider is a sphere or a plane that does not turn ([`soa_colliders`]).
+    soa: bool,
+    kernel: crate::simd::Kernel,
+}
+
+impl<'a> RowContacts<'a> {
+    fn new(colliders: &'a [crate::collide::Collider], h: f32) -> Self {
+        Self {
+            colliders,
+            h,
+            soa: soa_colliders(colliders),
+            kernel: crate::simd::kernel(),
+        }
+    }
+
+    /// The contacts of one row: positions `x, y, z` (updated), start positions `p0`, inverse
+    /// masses `w`, in chunks of [`NEAR_CHUNK`]. Returns the contact count.
+    fn row(&self, [x, y, z]: [&mut [f32]; 3], p0: [&[f32]; 3], w: &[f32]) -> u32 {
+        let (colliders, h) = (self.colliders, self.h);
+        let mut count = 0;
+        let mut near = [false; NEAR_CHUNK];
+        for c0 in (0..x.len()).step_by(NEAR_CHUNK) {
+            let n = NEAR_CHUNK.min(x.len() - c0);
+            let run = c0..c0 + n;
+            near_any(
+                colliders,
+                [&x[run.clone()], &y[run.clone()], &z[run.clone()]],
+                &mut near[..n],
+            );
+            if self.soa {
+                if !near[..n].contains(&true) {
+                    continue;
+                }
+                let (x, y, z) = (
+                    &mut x[run.clone()],
+                    &mut y[run.clone()],
+                    &mut z[run.clone()],
+                );
+                let p0 = [
+                    &p0[0][run.clone()],
+                    &p0[1][run.clone()],
+                    &p0[2][run.clone()],
+                ];
+                for col in colliders {
+                    count += crate::simd::xpbd_contacts(
+                        self.kernel,
+                        col,
+                        h,
+                        &w[run.clone()],
+                        [&mut *x, &mut *y, &mut *z],
+                        p0,
+                    );
+                }
+                continue;
+            }
+            for (k, &near) in near[..n].iter().enumerate() {
+                let c = c0 + k;
+                if !near || w[c] == 0.0 {
+                    continue;
+                }
+                let mut p = Vec3::new(x[c], y[c], z[c]);
+                let start = Vec3::new(p0[0][c], p0[1][c], p0[2][c]);
+                let mut touched = false;
+                for col in colliders {
+                    if surely_clear(col, p) {
+                        continue;
+                    }
+                    if super::xpbd::contact(col, &mut p, start, h) {
+                        touched = true;
+                        count += 1;
+                    }
+                }
+                if touched {
+                    (x[c], y[c], z[c]) = (p.x, p.y, p.z);
+                }
+            }
+        }
+        count
     }
 }
 
