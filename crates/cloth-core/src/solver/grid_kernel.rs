@@ -862,27 +862,7 @@ fn contacts_soa(job: &Job<'_>, s: usize, out: &mut [Vec<f32>; 6]) -> u32 {
             ($sphere:expr, $a:expr, $r:expr, $p:expr, $v:expr, $w:expr) => {{
                 let (sphere, a, r): (bool, Vec3, f32) = ($sphere, $a, $r);
                 let ([px, py, pz], [qx, qy, qz], w): ([f32; 3], [f32; 3], f32) = ($p, $v, $w);
-                let (dist, nx, ny, nz) = if sphere {
-                    // Shape::distance of a sphere: d = p − c, n = d / |d| (Y at the centre).
-                    let (dx, dy, dz) = (px - a.x, py - a.y, pz - a.z);
-                    let len = (dx * dx + dy * dy + dz * dz).sqrt();
-                    let pos = len > 0.0;
-                    (
-                        len - r,
-                        if pos { dx / len } else { 0.0 },
-                        if pos { dy / len } else { 1.0 },
-                        if pos { dz / len } else { 0.0 },
-                    )
-                } else {
-                    // A plane: `a` is its point, `n` its normal (passed in `norm`).
-                    let n = norm;
-                    (
-                        (px - a.x) * n.x + (py - a.y) * n.y + (pz - a.z) * n.z,
-                        n.x,
-                        n.y,
-                        n.z,
-                    )
-                };
+                let (dist, [nx, ny, nz]) = lane_distance(sphere, a, r, norm, [px, py, pz]);
                 let phi = dist - t;
                 let hit = w != 0.0 && !(phi >= 0.0);
                 // x ← x − φ·n
@@ -1062,26 +1042,7 @@ pub(crate) fn ccd_mask(
         let pivot_end = col.shape.pivot();
         let shift = pivot_end - (pivot_end - col.velocity * h);
         // Signed distance and normal (`Shape::distance`).
-        let dist = |x: f32, y: f32, z: f32| -> (f32, [f32; 3]) {
-            if sphere {
-                let (dx, dy, dz) = (x - p.x, y - p.y, z - p.z);
-                let len = (dx * dx + dy * dy + dz * dz).sqrt();
-                let pos = len > 0.0;
-                (
-                    len - r,
-                    [
-                        if pos { dx / len } else { 0.0 },
-                        if pos { dy / len } else { 1.0 },
-                        if pos { dz / len } else { 0.0 },
-                    ],
-                )
-            } else {
-                (
-                    (x - p.x) * n.x + (y - p.y) * n.y + (z - p.z) * n.z,
-                    n.to_array(),
-                )
-            }
-        };
+        let dist = |x: f32, y: f32, z: f32| lane_distance(sphere, p, r, n, [x, y, z]);
         // The signed distance alone (the same operations as `dist`'s).
         let dist_only = |x: f32, y: f32, z: f32| -> f32 {
             if sphere {
@@ -1132,6 +1093,38 @@ pub(crate) fn ccd_mask(
             }
             c0 = c1;
         }
+    }
+}
+
+/// `Shape::distance` of a sphere (`sphere`: centre `p`, radius `r`) or a plane (point `p`,
+/// unit normal `n`) at `x`, with the shape's own operations in the same order (so the same
+/// bits), written for lanes of a loop: the signed distance and the outward normal (a sphere's
+/// is `Y` at its centre). Shared by the passes on the arrays of both grid paths.
+#[inline(always)]
+pub(crate) fn lane_distance(
+    sphere: bool,
+    p: Vec3,
+    r: f32,
+    n: Vec3,
+    [x, y, z]: [f32; 3],
+) -> (f32, [f32; 3]) {
+    if sphere {
+        let (dx, dy, dz) = (x - p.x, y - p.y, z - p.z);
+        let len = (dx * dx + dy * dy + dz * dz).sqrt();
+        let pos = len > 0.0;
+        (
+            len - r,
+            [
+                if pos { dx / len } else { 0.0 },
+                if pos { dy / len } else { 1.0 },
+                if pos { dz / len } else { 0.0 },
+            ],
+        )
+    } else {
+        (
+            (x - p.x) * n.x + (y - p.y) * n.y + (z - p.z) * n.z,
+            n.to_array(),
+        )
     }
 }
 

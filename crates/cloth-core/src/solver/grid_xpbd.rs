@@ -1060,21 +1060,8 @@ fn contact_lanes<const SPHERE: bool>(
     let mut count = 0;
     for i in 0..n {
         let (px, py, pz) = (x[i], y[i], z[i]);
-        // `Shape::distance`.
-        let (dist, nx, ny, nz) = if SPHERE {
-            let (dx, dy, dz) = (px - p.x, py - p.y, pz - p.z);
-            let len = (dx * dx + dy * dy + dz * dz).sqrt();
-            let pos = len > 0.0;
-            (
-                len - r,
-                if pos { dx / len } else { 0.0 },
-                if pos { dy / len } else { 1.0 },
-                if pos { dz / len } else { 0.0 },
-            )
-        } else {
-            let d = (px - p.x) * nrm.x + (py - p.y) * nrm.y + (pz - p.z) * nrm.z;
-            (d, nrm.x, nrm.y, nrm.z)
-        };
+        let (dist, [nx, ny, nz]) =
+            super::grid_kernel::lane_distance(SPHERE, p, r, nrm, [px, py, pz]);
         let phi = dist - th;
         let touch = !(phi >= 0.0) && w[i] != 0.0;
         let push = -phi;
