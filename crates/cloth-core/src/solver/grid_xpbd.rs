@@ -92,9 +92,10 @@ pub(crate) struct XpbdGrid {
     lambda: [Vec<f32>; 6],
     /// Multipliers the strain limits are handed (they have none; never read).
     spare: Vec<f32>,
-    /// Positions x, y, z (structure of arrays), during the sweeps.
+    /// Positions x, y, z (structure of arrays): the state from the first substep of a step to
+    /// [`Self::sync`] at its end.
     pos: [Vec<f32>; 3],
-    /// Positions at the start of the substep.
+    /// Positions at the start of the current substep.
     prev: [Vec<f32>; 3],
     /// Inverse masses.
     inv_mass: Vec<f32>,
@@ -110,7 +111,7 @@ pub(crate) struct XpbdGrid {
     /// Air force of every triangle divided by 3 (the share of each corner), by component:
     /// `[first triangle of each cell, second]`, cell `r * (cols − 1) + c`.
     air: [[Vec<f32>; 3]; 2],
-    /// Velocities (structure of arrays), for the air force.
+    /// Velocities (structure of arrays), kept like `pos`.
     vel: [Vec<f32>; 3],
     /// Blocks of the chain solves (`XpbdSettings::chains`): warp (columns), weft (rows).
     chains: [Vec<f32>; 2],
@@ -675,15 +676,15 @@ impl XpbdGrid {
     }
 
     /// Collider contacts of every particle, rows in parallel (every sweep but the last, whose
-    /// contacts run in [`Self::finish`]). Returns the contact count.
+    /// contacts run, and are counted, in [`Self::finish`]).
     ///
     /// Chunks of [`NEAR_CHUNK`] particles clear of every collider ([`near_any`]) are skipped.
     /// When every collider is a sphere or a plane that does not turn, a chunk's contacts run
     /// on the arrays ([`contact_soa`], the per-particle routine's operations in every lane,
     /// selected), else per particle ([`super::xpbd::contact`]); both give the same bits.
-    fn contacts(&mut self, colliders: &[crate::collide::Collider], h: f32) -> u32 {
+    fn contacts(&mut self, colliders: &[crate::collide::Collider], h: f32) {
         if colliders.is_empty() {
-            return 0;
+            return;
         }
         let cols = self.cols;
         let contacts = RowContacts::new(colliders, h);
@@ -693,16 +694,16 @@ impl XpbdGrid {
             .zip(y.par_chunks_mut(cols))
             .zip(z.par_chunks_mut(cols))
             .enumerate()
-            .map(|(r, ((x, y), z))| {
+            .for_each(|(r, ((x, y), z))| {
                 let all = r * cols..(r + 1) * cols;
                 let p0 = [
                     &prev[0][all.clone()],
                     &prev[1][all.clone()],
                     &prev[2][all.clone()],
                 ];
-                contacts.row([x, y, z], p0, &w[all])
-            })
-            .sum()
+                // Only the last sweep's count is reported (by `finish`).
+                contacts.row([x, y, z], p0, &w[all]);
+            });
     }
 
     /// The end of a substep on the arrays, rows in parallel, each row on its own: the last
