@@ -44,6 +44,18 @@ pub(crate) const LANES: usize = 16;
 /// Steps per tile of the transposes of the weft's blocks.
 const TILE: usize = 16;
 
+/// Floats between the starts of two arrays of a block beyond their `len · LANES` entries: one
+/// cache line. Without it a block of 256-particle chains holds its arrays exactly 16 KiB
+/// apart, every array's step `k` falls into the same set of the 8-way L1 cache, and the
+/// fourteen streams of a sweep evict one another (a block of 256-particle chains took twice
+/// the cycles per step).
+const PAD: usize = 16;
+
+/// Floats from one array of a block of chains of `len` particles to the next.
+pub(crate) fn stride(len: usize) -> usize {
+    len * LANES + PAD
+}
+
 /// Arrays per block: x, y, z, start x, y, z, inverse mass, rest length, multiplier, direction
 /// x, y, z, the eliminated super-diagonal and right-hand side.
 pub(crate) const FIELDS: usize = 14;
@@ -310,7 +322,8 @@ pub(crate) fn gather<const L: usize>(
     lambda: Option<&[f32]>,
     statics: bool,
 ) {
-    let size = len * L;
+    let size = chunk.len() / FIELDS;
+    debug_assert!(size >= len * L);
     let sources = [pos[0], pos[1], pos[2], prev[0], prev[1], prev[2], w, rest];
     let fields = sources
         .into_iter()
@@ -322,7 +335,7 @@ pub(crate) fn gather<const L: usize>(
         let Some(src) = src else { continue };
         let dst = &mut chunk[f * size..(f + 1) * size];
         if class == 0 {
-            for (k, dst) in dst.as_chunks_mut::<L>().0.iter_mut().enumerate() {
+            for (k, dst) in dst.as_chunks_mut::<L>().0[..len].iter_mut().enumerate() {
                 let i = at(class, cols, first, k);
                 if lanes == L {
                     // A whole block: a copy of known length, inlined (no `memcpy` call per step).

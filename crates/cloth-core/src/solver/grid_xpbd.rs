@@ -457,7 +457,7 @@ impl XpbdGrid {
         use super::chains::{self, FIELDS, LANES};
         let (rows, cols) = (self.rows, self.cols);
         let (count, len) = chains::shape(class, rows, cols);
-        let size = len * LANES;
+        let size = chains::stride(len);
         let blocks = count.div_ceil(LANES);
         let kernel = crate::simd::kernel();
         let scratch = &mut self.chains[class];
