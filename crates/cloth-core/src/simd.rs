@@ -355,6 +355,59 @@ fn chains_avx512(block: chains::Block<'_>, len: usize, alpha: f32, gamma: f32, k
     chains::solve::<{ chains::LANES }>(block, len, alpha, gamma, keep);
 }
 
+/// Continuous collision's candidates of a run of particles against spheres and planes that
+/// do not turn ([`grid_kernel::ccd_mask`]; the same mask on every kernel), for callers outside
+/// a dispatched kernel (XPBD's finishing pass; the explicit band inlines it).
+pub(crate) fn ccd_mask(
+    kernel: Kernel,
+    colliders: &[crate::collide::Collider],
+    h: f32,
+    w: &[f32],
+    a: [&[f32]; 3],
+    b: [&[f32]; 3],
+    near: &mut [bool],
+) {
+    match kernel {
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx512 if Kernel::Avx512.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { ccd_mask_avx512(colliders, h, w, a, b, near) }
+        }
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 if Kernel::Avx2.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { ccd_mask_avx2(colliders, h, w, a, b, near) }
+        }
+        _ => grid_kernel::ccd_mask(colliders, h, w, a, b, near),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn ccd_mask_avx2(
+    colliders: &[crate::collide::Collider],
+    h: f32,
+    w: &[f32],
+    a: [&[f32]; 3],
+    b: [&[f32]; 3],
+    near: &mut [bool],
+) {
+    grid_kernel::ccd_mask(colliders, h, w, a, b, near);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+fn ccd_mask_avx512(
+    colliders: &[crate::collide::Collider],
+    h: f32,
+    w: &[f32],
+    a: [&[f32]; 3],
+    b: [&[f32]; 3],
+    near: &mut [bool],
+) {
+    grid_kernel::ccd_mask(colliders, h, w, a, b, near);
+}
+
 /// XPBD's contacts of a run of particles with one sphere or plane that does not turn, on the
 /// arrays ([`grid_xpbd::contact_soa`]; the same bits on every kernel). Returns the contact
 /// count.

@@ -1041,9 +1041,7 @@ pub(crate) fn ccd_mask(
         // `resolve_in`'s start point in the collider's end pose (no turn): a + (p₁ − p₀).
         let pivot_end = col.shape.pivot();
         let shift = pivot_end - (pivot_end - col.velocity * h);
-        // Signed distance and normal (`Shape::distance`).
-        let dist = |x: f32, y: f32, z: f32| lane_distance(sphere, p, r, n, [x, y, z]);
-        // The signed distance alone (the same operations as `dist`'s).
+        // The signed distance alone (the same operations as `lane_distance`'s).
         let dist_only = |x: f32, y: f32, z: f32| -> f32 {
             if sphere {
                 let (dx, dy, dz) = (x - p.x, y - p.y, z - p.z);
@@ -1052,44 +1050,66 @@ pub(crate) fn ccd_mask(
                 (x - p.x) * n.x + (y - p.y) * n.y + (z - p.z) * n.z
             }
         };
-        // One particle: `resolve_in`'s tests, the cheap ones first (`full` adds the ones
-        // that need the start point's distance and normal).
-        macro_rules! skip {
-            ($c:expr, $full:expr) => {{
-                let c = $c;
-                let (sx, sy, sz) = (ax[c] + shift.x, ay[c] + shift.y, az[c] + shift.z);
-                let (px, py, pz) = (bx[c] - sx, by[c] - sy, bz[c] - sz);
-                let l2 = px * px + py * py + pz * pz;
-                let len = l2.sqrt();
-                let db = dist_only(bx[c], by[c], bz[c]);
-                let cheap = w[c] == 0.0
-                    || l2 < 0.2 * tau * tau
-                    || len.is_nan()
-                    || len < 0.5 * tau
-                    || db >= len;
-                if $full {
-                    let (da, [nx, ny, nz]) = dist(sx, sy, sz);
-                    cheap
-                        || da < 0.0
-                        || da + db >= len
-                        || (da <= ccd::HIT_EPSILON && px * nx + py * ny + pz * nz >= -tau)
-                } else {
-                    cheap
-                }
-            }};
-        }
+        // Chunks of LANES particles copied into local arrays (lanes past the row's end are
+        // pinned, which every test skips), each test evaluated in every lane with `|` and
+        // `&` (no short-circuit, no branch: the lane loops vectorise), the cheap tests first
+        // and the ones that need the start point's distance and normal only for chunks where
+        // a cheap test fails.
         let mut c0 = 0;
         while c0 < cols {
             let c1 = (c0 + LANES).min(cols);
-            // A chunk whose particles all pass the cheap tests is left as it is.
-            let mut all = true;
-            for c in c0..c1 {
-                all &= skip!(c, false);
+            let mut lw = [0.0_f32; LANES];
+            let [mut lax, mut lay, mut laz, mut lbx, mut lby, mut lbz] = [[0.0_f32; LANES]; 6];
+            lw[..c1 - c0].copy_from_slice(&w[c0..c1]);
+            for (dst, src) in [
+                (&mut lax, ax),
+                (&mut lay, ay),
+                (&mut laz, az),
+                (&mut lbx, bx),
+                (&mut lby, by),
+                (&mut lbz, bz),
+            ] {
+                dst[..c1 - c0].copy_from_slice(&src[c0..c1]);
             }
-            if !all {
-                for (c, near) in near.iter_mut().enumerate().take(c1).skip(c0) {
-                    *near |= !skip!(c, true);
-                }
+            // `resolve_in`'s tests, the cheap ones: pinned, path under ½τ, `φ(b) ≥ |b − a|`.
+            let [
+                mut sx,
+                mut sy,
+                mut sz,
+                mut qx,
+                mut qy,
+                mut qz,
+                mut len,
+                mut db,
+            ] = [[0.0_f32; LANES]; 8];
+            let mut skip = [false; LANES];
+            for l in 0..LANES {
+                (sx[l], sy[l], sz[l]) = (lax[l] + shift.x, lay[l] + shift.y, laz[l] + shift.z);
+                (qx[l], qy[l], qz[l]) = (lbx[l] - sx[l], lby[l] - sy[l], lbz[l] - sz[l]);
+                let l2 = qx[l] * qx[l] + qy[l] * qy[l] + qz[l] * qz[l];
+                len[l] = l2.sqrt();
+                db[l] = dist_only(lbx[l], lby[l], lbz[l]);
+                skip[l] = (lw[l] == 0.0)
+                    | (l2 < 0.2 * tau * tau)
+                    | len[l].is_nan()
+                    | (len[l] < 0.5 * tau)
+                    | (db[l] >= len[l]);
+            }
+            if skip.iter().all(|&s| s) {
+                c0 = c1;
+                continue;
+            }
+            // The rest: `φ(a) < 0`, `φ(a) + φ(b) ≥ |b − a|`, touching at the start and
+            // leaving (`(b − a)·n ≥ −τ`).
+            for l in 0..LANES {
+                let (da, [nx, ny, nz]) = lane_distance(sphere, p, r, n, [sx[l], sy[l], sz[l]]);
+                skip[l] = skip[l]
+                    | (da < 0.0)
+                    | (da + db[l] >= len[l])
+                    | ((da <= ccd::HIT_EPSILON) & (qx[l] * nx + qy[l] * ny + qz[l] * nz >= -tau));
+            }
+            for (near, &skip) in near[c0..c1].iter_mut().zip(&skip) {
+                *near |= !skip;
             }
             c0 = c1;
         }

@@ -726,6 +726,7 @@ impl XpbdGrid {
         let cols = self.cols;
         let inv_h = 1.0 / h;
         let masked = soa_colliders(colliders);
+        let kernel = crate::simd::kernel();
         let contacts = RowContacts::new(contact, h);
         let (prev, w) = (&self.prev, &self.inv_mass);
         let [x, y, z] = &mut self.pos;
@@ -755,10 +756,7 @@ impl XpbdGrid {
                     (&mut *vy, (&*y, &prev[1][all.clone()])),
                     (&mut *vz, (&*z, &prev[2][all])),
                 ] {
-                    for (((v, &x), &x0), &w) in v.iter_mut().zip(x).zip(x0).zip(w) {
-                        // A select, not a branch, so the loop vectorises.
-                        *v = if w != 0.0 { (x - x0) * inv_h } else { *v };
-                    }
+                    velocities(v, x, x0, w, inv_h);
                 }
                 let mut count = 0;
                 if colliders.is_empty() {
@@ -773,7 +771,8 @@ impl XpbdGrid {
                     let i0 = r * cols + c0;
                     let (row, all) = (c0..c0 + n, i0..i0 + n);
                     if masked {
-                        super::grid_kernel::ccd_mask(
+                        crate::simd::ccd_mask(
+                            kernel,
                             colliders,
                             h,
                             &w[row.clone()],
@@ -782,7 +781,11 @@ impl XpbdGrid {
                             &mut near[..n],
                         );
                     }
-                    // Runs of candidates k .. l, gathered, resolved and written back.
+                    // Runs of candidates k .. l, gathered, resolved and written back (most
+                    // chunks have none: one test of the whole chunk first).
+                    if !near[..n].contains(&true) {
+                        continue;
+                    }
                     let mut k = 0;
                     while k < n {
                         if !near[k] {
@@ -820,6 +823,39 @@ impl XpbdGrid {
             .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
     }
 }
+
+/// `v = (x − x₀)/h` for the free particles of a run (`inv_h` = 1/h; pinned ones keep their
+/// velocity), one component: in chunks of [`CHUNK`] lanes through local arrays, the select
+/// computed in every lane, so the loop vectorises (written over the slices directly, the
+/// compiler kept a branch and a scalar loop: the select's `else` reads `v`, which it could
+/// not prove apart from the other slices).
+#[inline(always)]
+fn velocities(v: &mut [f32], x: &[f32], x0: &[f32], w: &[f32], inv_h: f32) {
+    let n = v.len();
+    let (x, x0, w) = (&x[..n], &x0[..n], &w[..n]);
+    let one = |v: &mut f32, x: f32, x0: f32, w: f32| {
+        let moved = (x - x0) * inv_h;
+        *v = if w != 0.0 { moved } else { *v };
+    };
+    let (v, v_tail) = v.as_chunks_mut::<CHUNK>();
+    let (x, x_tail) = x.as_chunks::<CHUNK>();
+    let (x0, x0_tail) = x0.as_chunks::<CHUNK>();
+    let (w, w_tail) = w.as_chunks::<CHUNK>();
+    for (((v, x), x0), w) in v.iter_mut().zip(x).zip(x0).zip(w) {
+        // Whole chunks copied (fixed length, inlined) into locals.
+        let (mut lv, lx, lx0, lw) = (*v, *x, *x0, *w);
+        for l in 0..CHUNK {
+            one(&mut lv[l], lx[l], lx0[l], lw[l]);
+        }
+        *v = lv;
+    }
+    for (((v, &x), &x0), &w) in v_tail.iter_mut().zip(x_tail).zip(x0_tail).zip(w_tail) {
+        one(v, x, x0, w);
+    }
+}
+
+/// Lanes per chunk of [`velocities`].
+const CHUNK: usize = 32;
 
 /// The contact pass of one row ([`XpbdGrid::contacts`], and the last sweep's inside
 /// [`XpbdGrid::finish`]): chunks clear of every collider skipped, the rest on the arrays or
