@@ -1050,68 +1050,65 @@ pub(crate) fn ccd_mask(
                 (x - p.x) * n.x + (y - p.y) * n.y + (z - p.z) * n.z
             }
         };
-        // Chunks of LANES particles copied into local arrays (lanes past the row's end are
-        // pinned, which every test skips), each test evaluated in every lane with `|` and
-        // `&` (no short-circuit, no branch: the lane loops vectorise), the cheap tests first
-        // and the ones that need the start point's distance and normal only for chunks where
-        // a cheap test fails.
-        let mut c0 = 0;
-        while c0 < cols {
-            let c1 = (c0 + LANES).min(cols);
-            let mut lw = [0.0_f32; LANES];
-            let [mut lax, mut lay, mut laz, mut lbx, mut lby, mut lbz] = [[0.0_f32; LANES]; 6];
-            lw[..c1 - c0].copy_from_slice(&w[c0..c1]);
-            for (dst, src) in [
-                (&mut lax, ax),
-                (&mut lay, ay),
-                (&mut laz, az),
-                (&mut lbx, bx),
-                (&mut lby, by),
-                (&mut lbz, bz),
-            ] {
-                dst[..c1 - c0].copy_from_slice(&src[c0..c1]);
-            }
-            // `resolve_in`'s tests, the cheap ones: pinned, path under ½τ, `φ(b) ≥ |b − a|`.
-            let [
-                mut sx,
-                mut sy,
-                mut sz,
-                mut qx,
-                mut qy,
-                mut qz,
-                mut len,
-                mut db,
-            ] = [[0.0_f32; LANES]; 8];
+        // `resolve_in`'s cheap tests of one particle (pinned, path under ½τ, `φ(b) ≥ |b − a|`),
+        // with `|` (no short-circuit, no branch), and what the others need: the start point,
+        // the path, its length and `φ(b)`.
+        let cheap = |w: f32, [ax, ay, az]: [f32; 3], [bx, by, bz]: [f32; 3]| {
+            let (sx, sy, sz) = (ax + shift.x, ay + shift.y, az + shift.z);
+            let (qx, qy, qz) = (bx - sx, by - sy, bz - sz);
+            let l2 = qx * qx + qy * qy + qz * qz;
+            let len = l2.sqrt();
+            let db = dist_only(bx, by, bz);
+            let skip = (w == 0.0)
+                | (l2 < 0.2 * tau * tau)
+                | len.is_nan()
+                | (len < 0.5 * tau)
+                | (db >= len);
+            (skip, [sx, sy, sz], [qx, qy, qz], len, db)
+        };
+        // The other tests: `φ(a) < 0`, `φ(a) + φ(b) ≥ |b − a|`, touching at the start and
+        // leaving (`(b − a)·n ≥ −τ`).
+        let rest = |[sx, sy, sz]: [f32; 3], [qx, qy, qz]: [f32; 3], len: f32, db: f32| {
+            let (da, [nx, ny, nz]) = lane_distance(sphere, p, r, n, [sx, sy, sz]);
+            (da < 0.0)
+                | (da + db >= len)
+                | ((da <= ccd::HIT_EPSILON) & (qx * nx + qy * ny + qz * nz >= -tau))
+        };
+        // Whole chunks of LANES particles read in place, every test in every lane (the lane
+        // loops vectorise); the tests that need the start point's distance and normal only
+        // for chunks where a cheap test fails. Then the last particles one by one.
+        let (nc, nt) = near.as_chunks_mut::<LANES>();
+        let (wc, wt) = w.as_chunks::<LANES>();
+        let [(axc, axt), (ayc, ayt), (azc, azt)] = [ax, ay, az].map(|a| a.as_chunks::<LANES>());
+        let [(bxc, bxt), (byc, byt), (bzc, bzt)] = [bx, by, bz].map(|b| b.as_chunks::<LANES>());
+        for (i, near) in nc.iter_mut().enumerate() {
+            let (w, ax, ay, az) = (&wc[i], &axc[i], &ayc[i], &azc[i]);
+            let (bx, by, bz) = (&bxc[i], &byc[i], &bzc[i]);
             let mut skip = [false; LANES];
+            let ([mut sx, mut sy, mut sz], [mut qx, mut qy, mut qz]) =
+                ([[0.0_f32; LANES]; 3], [[0.0_f32; LANES]; 3]);
+            let (mut len, mut db) = ([0.0_f32; LANES], [0.0_f32; LANES]);
             for l in 0..LANES {
-                (sx[l], sy[l], sz[l]) = (lax[l] + shift.x, lay[l] + shift.y, laz[l] + shift.z);
-                (qx[l], qy[l], qz[l]) = (lbx[l] - sx[l], lby[l] - sy[l], lbz[l] - sz[l]);
-                let l2 = qx[l] * qx[l] + qy[l] * qy[l] + qz[l] * qz[l];
-                len[l] = l2.sqrt();
-                db[l] = dist_only(lbx[l], lby[l], lbz[l]);
-                skip[l] = (lw[l] == 0.0)
-                    | (l2 < 0.2 * tau * tau)
-                    | len[l].is_nan()
-                    | (len[l] < 0.5 * tau)
-                    | (db[l] >= len[l]);
+                let (k, s, q, length, d) =
+                    cheap(w[l], [ax[l], ay[l], az[l]], [bx[l], by[l], bz[l]]);
+                (skip[l], len[l], db[l]) = (k, length, d);
+                [sx[l], sy[l], sz[l]] = s;
+                [qx[l], qy[l], qz[l]] = q;
             }
             if skip.iter().all(|&s| s) {
-                c0 = c1;
                 continue;
             }
-            // The rest: `φ(a) < 0`, `φ(a) + φ(b) ≥ |b − a|`, touching at the start and
-            // leaving (`(b − a)·n ≥ −τ`).
             for l in 0..LANES {
-                let (da, [nx, ny, nz]) = lane_distance(sphere, p, r, n, [sx[l], sy[l], sz[l]]);
-                skip[l] = skip[l]
-                    | (da < 0.0)
-                    | (da + db[l] >= len[l])
-                    | ((da <= ccd::HIT_EPSILON) & (qx[l] * nx + qy[l] * ny + qz[l] * nz >= -tau));
+                let other = rest([sx[l], sy[l], sz[l]], [qx[l], qy[l], qz[l]], len[l], db[l]);
+                near[l] |= !(skip[l] | other);
             }
-            for (near, &skip) in near[c0..c1].iter_mut().zip(&skip) {
-                *near |= !skip;
+        }
+        for (k, near) in nt.iter_mut().enumerate() {
+            let (skip, s, q, len, db) =
+                cheap(wt[k], [axt[k], ayt[k], azt[k]], [bxt[k], byt[k], bzt[k]]);
+            if !skip && !rest(s, q, len, db) {
+                *near = true;
             }
-            c0 = c1;
         }
     }
 }
