@@ -46,6 +46,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::SubstepCtx;
+use super::placed::Placed;
 use crate::collide::{Collider, ccd, resolve_contacts_in};
 use crate::config::{Integrator, SimConfig};
 use crate::simd::{self, Kernel};
@@ -125,7 +126,7 @@ pub(crate) struct GridScratch {
     /// grid in the builder's order.
     key: Option<(usize, usize, usize, bool)>,
     /// Rest length per class and slot `r * cols + c`.
-    rest: [Vec<f32>; 6],
+    rest: [Placed; 6],
     next_position: Vec<Vec3>,
     next_velocity: Vec<Vec3>,
     /// The state kept between substeps of a step (see [`Plan::persist`]), row-blocked
@@ -267,19 +268,18 @@ impl GridScratch {
 /// lengths by class and slot `r * cols + c` (see [`CLASSES`]) into `rest`. Returns whether the
 /// springs are exactly the grid's.
 pub(super) fn load_rest(
-    rest: &mut [Vec<f32>; 6],
+    rest: &mut [Placed; 6],
     topology: &Topology,
     rows: usize,
     cols: usize,
 ) -> bool {
-    for r in rest.iter_mut() {
+    for (slot, r) in rest.iter_mut().enumerate() {
         // LANES slack: the spring kernel reads whole chunks past the last row's end.
-        r.clear();
-        r.resize(rows * cols + LANES, 0.0);
+        r.reset(rows * cols + LANES, slot);
     }
     let idx = |r: usize, c: usize| (r * cols + c) as u32;
     let mut next = [0_usize; 4];
-    let mut take = |rest: &mut [Vec<f32>; 6], class: usize, r: usize, c: usize| -> bool {
+    let mut take = |rest: &mut [Placed; 6], class: usize, r: usize, c: usize| -> bool {
         let (dr, a_dc, b_dc, kind) = CLASSES[class];
         let list = topology.springs_of(kind);
         let Some(s) = list.get(next[kind as usize]) else {
@@ -362,7 +362,7 @@ pub(crate) struct Job<'a> {
     src: Source<'a>,
     mass: &'a [f32],
     inv_mass: &'a [f32],
-    rest: &'a [Vec<f32>; 6],
+    rest: &'a [Placed; 6],
     plus_zero: &'a [f32],
     minus_zero: &'a [f32],
     colliders: &'a [Collider],

@@ -56,6 +56,7 @@ use rayon::prelude::*;
 
 use super::SubstepCtx;
 use super::grid_kernel::{CLASSES, load_rest};
+use super::placed::Placed;
 use crate::config::SimConfig;
 use crate::topology::Topology;
 
@@ -87,20 +88,20 @@ pub(crate) struct XpbdGrid {
     rows: usize,
     cols: usize,
     /// Rest length per class and slot (see [`CLASSES`]).
-    rest: [Vec<f32>; 6],
+    rest: [Placed; 6],
     /// Lagrange multipliers per class and slot, reset every substep.
-    lambda: [Vec<f32>; 6],
+    lambda: [Placed; 6],
     /// Multipliers the strain limits are handed (they have none; never read).
-    spare: Vec<f32>,
+    spare: Placed,
     /// Positions x, y, z (structure of arrays): the state from the first substep of a step to
     /// [`Self::sync`] at its end.
-    pos: [Vec<f32>; 3],
+    pos: [Placed; 3],
     /// Positions at the start of the current substep.
-    prev: [Vec<f32>; 3],
+    prev: [Placed; 3],
     /// Inverse masses.
-    inv_mass: Vec<f32>,
+    inv_mass: Placed,
     /// Corrections of a horizontal pass, by component.
-    corr: [Vec<f32>; 3],
+    corr: [Placed; 3],
     /// Colour masks (1.0 in the colour, 0.0 outside) by log2 of the spacing and colour.
     masks: Vec<[Vec<f32>; 2]>,
     /// Whether the multipliers are kept (more than one sweep per substep).
@@ -110,9 +111,9 @@ pub(crate) struct XpbdGrid {
     levels_key: Option<(u32, u32)>,
     /// Air force of every triangle divided by 3 (the share of each corner), by component:
     /// `[first triangle of each cell, second]`, cell `r * (cols − 1) + c`.
-    air: [[Vec<f32>; 3]; 2],
+    air: [[Placed; 3]; 2],
     /// Velocities (structure of arrays), kept like `pos`.
-    vel: [Vec<f32>; 3],
+    vel: [Placed; 3],
     /// Blocks of the chain solves (`XpbdSettings::chains`): warp (columns), weft (rows).
     chains: [Vec<f32>; 2],
     /// Whether each direction's blocks hold the current inverse masses and rest lengths.
@@ -156,24 +157,23 @@ impl XpbdGrid {
         if ok {
             self.rows = rows;
             self.cols = cols;
-            for a in self
+            // Each array at its own line of a page (slots 0–5 are the rest lengths').
+            let arrays = self
                 .lambda
                 .iter_mut()
                 .chain(&mut self.pos)
                 .chain(&mut self.prev)
                 .chain(&mut self.corr)
                 .chain([&mut self.inv_mass, &mut self.spare])
-            {
-                a.clear();
-                a.resize(n, 0.0);
+                .chain(&mut self.vel);
+            let mut slot = 6;
+            for a in arrays {
+                a.reset(n, slot);
+                slot += 1;
             }
             for a in self.air.iter_mut().flatten() {
-                a.clear();
-                a.resize((rows - 1) * (cols - 1), 0.0);
-            }
-            for a in &mut self.vel {
-                a.clear();
-                a.resize(n, 0.0);
+                a.reset((rows - 1) * (cols - 1), slot);
+                slot += 1;
             }
             self.masks.clear();
             let mut s = 1;
@@ -531,14 +531,14 @@ impl XpbdGrid {
 
     /// The multipliers of a pass, taken out of the scratch for the pass (limits get a spare
     /// array).
-    fn take_lambda(&mut self, which: Rest) -> Vec<f32> {
+    fn take_lambda(&mut self, which: Rest) -> Placed {
         match which {
             Rest::Class(c) => std::mem::take(&mut self.lambda[c]),
             _ => std::mem::take(&mut self.spare),
         }
     }
 
-    fn put_lambda(&mut self, which: Rest, lambda: Vec<f32>) {
+    fn put_lambda(&mut self, which: Rest, lambda: Placed) {
         match which {
             Rest::Class(c) => self.lambda[c] = lambda,
             _ => self.spare = lambda,
@@ -1205,7 +1205,7 @@ fn grid_triangles(topology: &Topology, rows: usize, cols: usize) -> bool {
 }
 
 /// The rest (or limit) lengths a pass reads.
-fn rest_of<'a>(rest: &'a [Vec<f32>; 6], levels: &'a [Level], which: Rest) -> &'a [f32] {
+fn rest_of<'a>(rest: &'a [Placed; 6], levels: &'a [Level], which: Rest) -> &'a [f32] {
     match which {
         Rest::Class(c) => &rest[c],
         Rest::Vertical(l) => &levels[l].vertical,
@@ -1223,7 +1223,7 @@ enum Rest {
 
 /// What every row of a pass reads.
 pub(crate) struct Shared<'a> {
-    prev: &'a [Vec<f32>; 3],
+    prev: &'a [Placed; 3],
     w: &'a [f32],
     rest: &'a [f32],
     mode: Mode,
@@ -1238,7 +1238,7 @@ fn rows_pair(block: &mut [f32], r: usize, dr: usize, cols: usize) -> (&mut [f32]
     (&mut a[r * cols..(r + 1) * cols], &mut b[..cols])
 }
 
-fn scatter(v: &[Vec3], out: &mut [Vec<f32>; 3]) {
+fn scatter(v: &[Vec3], out: &mut [Placed; 3]) {
     let [x, y, z] = out;
     for (((p, x), y), z) in v
         .iter()

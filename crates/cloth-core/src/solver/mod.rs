@@ -10,6 +10,7 @@ mod explicit;
 pub(crate) mod grid_kernel;
 pub(crate) mod grid_xpbd;
 mod implicit;
+pub(crate) mod placed;
 mod xpbd;
 
 use glam::Vec3;
