@@ -16,12 +16,25 @@ const LINES: usize = 64;
 
 /// An `f32` array whose first entry sits at cache line `slot · 5 mod 64` of a 4 KiB page
 /// (consecutive slots five lines apart, so 64 slots never share a line), read and written as
-/// a slice. The empty default holds nothing until [`Placed::reset`].
-#[derive(Debug, Default, Clone)]
+/// a slice. The empty default holds nothing until [`Placed::reset`]. A clone is placed on
+/// its slot's line again in its own allocation (a copied offset would not be).
+#[derive(Debug, Default)]
 pub(crate) struct Placed {
     buf: Vec<f32>,
     offset: usize,
     len: usize,
+    slot: usize,
+}
+
+impl Clone for Placed {
+    fn clone(&self) -> Self {
+        let mut copy = Self::default();
+        if !self.buf.is_empty() {
+            copy.reset(self.len, self.slot);
+            copy.copy_from_slice(self);
+        }
+        copy
+    }
 }
 
 impl Placed {
@@ -34,6 +47,7 @@ impl Placed {
         let want = (slot * 5 % LINES) * (PAGE / LINES);
         self.offset = (want + PAGE - at) % PAGE;
         self.len = len;
+        self.slot = slot;
     }
 }
 
@@ -54,7 +68,8 @@ impl std::ops::DerefMut for Placed {
 mod tests {
     use super::*;
 
-    /// The array holds `len` zeros at the requested line of a page, whatever the allocation.
+    /// The array holds `len` zeros at the requested line of a page, whatever the allocation,
+    /// and a clone holds the same values at the same line.
     #[test]
     fn reset_places_the_first_entry_on_its_slot_line() {
         let mut a = Placed::default();
@@ -66,6 +81,13 @@ mod tests {
             let line = (a.as_ptr() as usize % 4096) / 64;
             assert_eq!(line, slot * 5 % 64, "slot {slot}");
             a[999] = 1.0;
+            let b = a.clone();
+            assert_eq!(&b[..], &a[..]);
+            assert_eq!(
+                (b.as_ptr() as usize % 4096) / 64,
+                line,
+                "clone of slot {slot}"
+            );
         }
     }
 }
