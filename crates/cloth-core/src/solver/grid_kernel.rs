@@ -1041,15 +1041,6 @@ pub(crate) fn ccd_mask(
         // `resolve_in`'s start point in the collider's end pose (no turn): a + (p₁ − p₀).
         let pivot_end = col.shape.pivot();
         let shift = pivot_end - (pivot_end - col.velocity * h);
-        // The signed distance alone (the same operations as `lane_distance`'s).
-        let dist_only = |x: f32, y: f32, z: f32| -> f32 {
-            if sphere {
-                let (dx, dy, dz) = (x - p.x, y - p.y, z - p.z);
-                (dx * dx + dy * dy + dz * dz).sqrt() - r
-            } else {
-                (x - p.x) * n.x + (y - p.y) * n.y + (z - p.z) * n.z
-            }
-        };
         // `resolve_in`'s cheap tests of one particle (pinned, path under ½τ, `φ(b) ≥ |b − a|`),
         // with `|` (no short-circuit, no branch), and what the others need: the start point,
         // the path, its length and `φ(b)`.
@@ -1058,7 +1049,8 @@ pub(crate) fn ccd_mask(
             let (qx, qy, qz) = (bx - sx, by - sy, bz - sz);
             let l2 = qx * qx + qy * qy + qz * qz;
             let len = l2.sqrt();
-            let db = dist_only(bx, by, bz);
+            // The signed distance alone (the unused normal's divisions are dead code).
+            let db = lane_distance(sphere, p, r, n, [bx, by, bz]).0;
             let skip = (w == 0.0)
                 | (l2 < 0.2 * tau * tau)
                 | len.is_nan()

@@ -22,7 +22,6 @@ const LINES: usize = 64;
 pub(crate) struct Placed {
     buf: Vec<f32>,
     offset: usize,
-    len: usize,
     slot: usize,
 }
 
@@ -30,7 +29,7 @@ impl Clone for Placed {
     fn clone(&self) -> Self {
         let mut copy = Self::default();
         if !self.buf.is_empty() {
-            copy.reset(self.len, self.slot);
+            copy.reset(self.len(), self.slot);
             copy.copy_from_slice(self);
         }
         copy
@@ -46,7 +45,6 @@ impl Placed {
         let at = (self.buf.as_ptr() as usize / size_of::<f32>()) % PAGE;
         let want = (slot * 5 % LINES) * (PAGE / LINES);
         self.offset = (want + PAGE - at) % PAGE;
-        self.len = len;
         self.slot = slot;
     }
 }
@@ -54,13 +52,15 @@ impl Placed {
 impl std::ops::Deref for Placed {
     type Target = [f32];
     fn deref(&self) -> &[f32] {
-        &self.buf[self.offset..self.offset + self.len]
+        let len = self.buf.len().saturating_sub(PAGE);
+        &self.buf[self.offset..self.offset + len]
     }
 }
 
 impl std::ops::DerefMut for Placed {
     fn deref_mut(&mut self) -> &mut [f32] {
-        &mut self.buf[self.offset..self.offset + self.len]
+        let len = self.buf.len().saturating_sub(PAGE);
+        &mut self.buf[self.offset..self.offset + len]
     }
 }
 
