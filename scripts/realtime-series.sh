@@ -8,31 +8,33 @@
 # A setting SUBSTEPS:LEVELS:chains also solves the structural springs chain by chain
 # (xpbd.chains = true); a fourth field sets the sweeps per substep (default 1), e.g. 10:0:chains:2
 # (or 10:0:plain:2 without chains), and a fifth the Newton iterations of each chain solve
-# (xpbd.chain_iterations, default 1), e.g. 10:0:chains:1:3.
-# Usage: [KERNEL=reference] scripts/realtime-series.sh RES SECONDS THREADS SUBSTEPS:LEVELS[:chains[:SWEEPS[:NEWTON]]]...
+# (xpbd.chain_iterations, default 1), e.g. 10:0:chains:1:3, and a sixth the rounds of chain
+# solves per sweep (xpbd.chain_rounds, default 1), e.g. 6:0:chains:1:2:2.
+# Usage: [KERNEL=reference] scripts/realtime-series.sh RES SECONDS THREADS SUBSTEPS:LEVELS[:chains[:SWEEPS[:NEWTON[:ROUNDS]]]]...
 set -euo pipefail
 res=$1 seconds=$2 threads=$3
 shift 3
 bin=${CLOTH:-target/release/cloth}
 out=$(mktemp -d)
 damping=$(python3 -c "print(repr(2e-4 * (48 / $res) ** 2))")
-printf '%-6s %-9s %-6s %-7s %-7s %-6s %12s %9s %9s %9s %9s %12s\n' res substeps sweeps levels chains newton ms/frame p50% p99% p99.9% max% penetration
+printf '%-6s %-9s %-6s %-7s %-7s %-6s %-6s %12s %9s %9s %9s %9s %12s\n' res substeps sweeps levels chains newton rounds ms/frame p50% p99% p99.9% max% penetration
 for setting in "$@"; do
-  IFS=: read -r substeps levels mode sweeps newton <<<"$setting"
+  IFS=: read -r substeps levels mode sweeps newton rounds <<<"$setting"
   newton=${newton:-1}
+  rounds=${rounds:-1}
   sweeps=${sweeps:-1}
   chains=false
   [ "${mode:-}" = chains ] && chains=true
   "$bin" sim drape --resolution "$res" --seconds "$seconds" --threads "$threads" ${KERNEL:+--kernel "$KERNEL"} \
     --set 'solver.kind="xpbd"' --set "solver.substeps=$substeps" --set "forces.damping=$damping" \
-    --set "solver.xpbd={iterations=$sweeps,hierarchy_levels=$levels,chains=$chains,chain_iterations=$newton}" \
+    --set "solver.xpbd={iterations=$sweeps,hierarchy_levels=$levels,chains=$chains,chain_iterations=$newton,chain_rounds=$rounds}" \
     --report "$out/r.json" >/dev/null
-  python3 - "$out/r.json" "$res" "$substeps" "$levels" "$chains" "$sweeps" "$newton" <<'PY'
+  python3 - "$out/r.json" "$res" "$substeps" "$levels" "$chains" "$sweeps" "$newton" "$rounds" <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1]))
 q = r["final_structural_strain"]
 pen = max(f["max_penetration"] for f in r["frames"][len(r["frames"]) // 2:])
-print(f'{sys.argv[2]:<6} {sys.argv[3]:<9} {sys.argv[6]:<6} {sys.argv[4]:<7} {sys.argv[5]:<7} {sys.argv[7]:<6} {r["median_frame_ms"]:12.2f} '
+print(f'{sys.argv[2]:<6} {sys.argv[3]:<9} {sys.argv[6]:<6} {sys.argv[4]:<7} {sys.argv[5]:<7} {sys.argv[7]:<6} {sys.argv[8]:<6} {r["median_frame_ms"]:12.2f} '
       f'{100*q["p50"]:9.3f} {100*q["p99"]:9.3f} {100*q["p99_9"]:9.3f} {100*q["max"]:9.3f} {pen:12.2e}')
 PY
 done

@@ -611,6 +611,11 @@ pub struct XpbdDesc {
     pub chains: bool,
     #[serde(default = "d_chain_iter")]
     pub chain_iterations: u32,
+    #[serde(default = "d_chain_rounds")]
+    pub chain_rounds: u32,
+}
+fn d_chain_rounds() -> u32 {
+    XpbdSettings::default().chain_rounds
 }
 fn d_chain_iter() -> u32 {
     XpbdSettings::default().chain_iterations
@@ -634,6 +639,7 @@ impl Default for XpbdDesc {
             hierarchy_slack: d_hslack(),
             chains: false,
             chain_iterations: d_chain_iter(),
+            chain_rounds: d_chain_rounds(),
         }
     }
 }
@@ -1138,6 +1144,13 @@ impl Scene {
                 "1 ..= 16",
             ));
         }
+        if !(1..=16).contains(&s.xpbd.chain_rounds) {
+            return Err(invalid(
+                "solver.xpbd.chain_rounds",
+                s.xpbd.chain_rounds,
+                "1 ..= 16",
+            ));
+        }
         if !(s.limits.max_stretch_ratio.is_finite() && s.limits.max_stretch_ratio > 1.0) {
             return Err(invalid(
                 "solver.limits.max_stretch_ratio",
@@ -1228,6 +1241,7 @@ impl Scene {
             hierarchy_slack: s.xpbd.hierarchy_slack,
             chains: s.xpbd.chains,
             chain_iterations: s.xpbd.chain_iterations,
+            chain_rounds: s.xpbd.chain_rounds,
         };
         config
     }
@@ -1474,6 +1488,7 @@ const KNOWN_KEYS: &[&str] = &[
     "hierarchy_slack",
     "chains",
     "chain_iterations",
+    "chain_rounds",
     "max_stretch_ratio",
     "max_speed",
     "eye",
@@ -1730,6 +1745,7 @@ impl Scene {
                 hierarchy_slack: c.xpbd.hierarchy_slack,
                 chains: c.xpbd.chains,
                 chain_iterations: c.xpbd.chain_iterations,
+                chain_rounds: c.xpbd.chain_rounds,
             },
             limits: LimitsDesc {
                 max_stretch_ratio: c.limits.max_stretch_ratio,

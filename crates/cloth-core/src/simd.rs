@@ -408,6 +408,52 @@ fn ccd_mask_avx512(
     grid_kernel::ccd_mask(colliders, h, w, a, b, near);
 }
 
+/// The diagnostics' energies, strains and stretch check of a run of springs
+/// ([`crate::diagnostics::spring_lanes`]; the same bits on every kernel).
+pub(crate) fn spring_lanes(
+    kernel: Kernel,
+    position: &[glam::Vec3],
+    springs: &[crate::topology::Spring],
+    k: f64,
+    limit: f32,
+) -> crate::diagnostics::SpringLanes {
+    match kernel {
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx512 if Kernel::Avx512.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { spring_lanes_avx512(position, springs, k, limit) }
+        }
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 if Kernel::Avx2.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { spring_lanes_avx2(position, springs, k, limit) }
+        }
+        _ => crate::diagnostics::spring_lanes(position, springs, k, limit),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn spring_lanes_avx2(
+    position: &[glam::Vec3],
+    springs: &[crate::topology::Spring],
+    k: f64,
+    limit: f32,
+) -> crate::diagnostics::SpringLanes {
+    crate::diagnostics::spring_lanes(position, springs, k, limit)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+fn spring_lanes_avx512(
+    position: &[glam::Vec3],
+    springs: &[crate::topology::Spring],
+    k: f64,
+    limit: f32,
+) -> crate::diagnostics::SpringLanes {
+    crate::diagnostics::spring_lanes(position, springs, k, limit)
+}
+
 /// XPBD's contacts of a run of particles with one sphere or plane that does not turn, on the
 /// arrays ([`grid_xpbd::contact_soa`]; the same bits on every kernel). Returns the contact
 /// count.

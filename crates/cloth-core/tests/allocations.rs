@@ -136,8 +136,10 @@ fn threaded_fast_path_steps_do_not_allocate() {
             config.xpbd.hierarchy_levels = 3;
             config.xpbd.tethers = false;
             config.xpbd.chains = chains;
-            // Two Newton iterations per chain solve (the multipliers zeroed in the blocks).
+            // Two Newton iterations per chain solve (the multipliers zeroed in the blocks),
+            // two rounds of chain solves (a contact pass before each).
             config.xpbd.chain_iterations = if chains { 2 } else { 1 };
+            config.xpbd.chain_rounds = if chains { 2 } else { 1 };
         }
         config.air.wind = Vec3::new(1.0, 0.0, 0.5);
         if integrator == Integrator::ForwardEuler {

@@ -527,6 +527,9 @@ fn bad_configs() -> Vec<(SimConfig, &'static str, &'static str)> {
         let mut c = d();
         c.xpbd.chain_iterations = chain_iterations;
         v.push((c, "config.xpbd.chain_iterations", "1 ..= 16"));
+        let mut c = d();
+        c.xpbd.chain_rounds = chain_iterations;
+        v.push((c, "config.xpbd.chain_rounds", "1 ..= 16"));
     }
     v.push((
         SimConfig {

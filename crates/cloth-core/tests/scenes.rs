@@ -138,7 +138,7 @@ fn wrong_types_are_errors() {
 /// Out-of-range and non-finite values name the key, its line and the allowed range.
 #[test]
 fn out_of_range_values_name_key_line_and_range() {
-    let cases: [(&str, &str, &str, usize, &str); 9] = [
+    let cases: [(&str, &str, &str, usize, &str); 10] = [
         (
             "resolution = [8, 8]",
             "resolution = [0, 8]",
@@ -199,6 +199,13 @@ fn out_of_range_values_name_key_line_and_range() {
             "radius = 0.5",
             "radius = 0.5\n[solver.xpbd]\nchains = true\nchain_iterations = 0",
             "solver.xpbd.chain_iterations",
+            12,
+            "1 ..= 16",
+        ),
+        (
+            "radius = 0.5",
+            "radius = 0.5\n[solver.xpbd]\nchains = true\nchain_rounds = 17",
+            "solver.xpbd.chain_rounds",
             12,
             "1 ..= 16",
         ),

@@ -241,23 +241,35 @@ pub(crate) fn solve<const L: usize>(
     }
 }
 
+/// What a block's multipliers (field 8) hold when its chains are solved.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Multipliers {
+    /// Zero, and never read: one sweep, one round and one iteration per substep (the solve
+    /// then treats them as zero without reading or writing them; the same bits).
+    Unused,
+    /// Start from zero here and add up over the iterations and later rounds: the first round
+    /// of a substep with one sweep (the block's multipliers are zeroed first).
+    Fresh,
+    /// Their current values (gathered from the grid with several sweeps, or left in the block
+    /// by the previous round of this substep), added to.
+    Kept,
+}
+
 /// `iterations` Newton iterations of the chain solves of a block (`XpbdSettings::
 /// chain_iterations`): [`solve`] again from the positions the previous iteration left, the
-/// multipliers adding up over the iterations. Without `keep` (one sweep per substep: the
-/// multipliers start at zero and are not kept) the block's multipliers are zeroed first when
-/// more than one iteration runs; one iteration never reads them (the same bits).
+/// multipliers adding up over the iterations (and over the rounds, `multipliers`).
 pub(crate) fn iterate(
     chunk: &mut [f32],
     size: usize,
     len: usize,
     (alpha, gamma, iterations): (f32, f32, u32),
-    keep: bool,
+    multipliers: Multipliers,
     kernel: crate::simd::Kernel,
 ) {
-    if iterations > 1 && !keep {
+    if multipliers == Multipliers::Fresh {
         chunk[8 * size..9 * size].fill(0.0);
     }
-    let keep = keep || iterations > 1;
+    let keep = multipliers != Multipliers::Unused;
     for _ in 0..iterations {
         crate::simd::xpbd_chains(kernel, Block::split(chunk, size), len, alpha, gamma, keep);
     }

@@ -55,6 +55,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::SubstepCtx;
+use super::chains::Multipliers;
 use super::grid_kernel::{CLASSES, load_rest};
 use super::placed::Placed;
 use crate::config::SimConfig;
@@ -403,26 +404,39 @@ impl XpbdGrid {
         for sweep in 0..settings.iterations {
             // With chains the structural springs go last (after shear and bend): the stiffest
             // constraints, solved exactly per chain, end the sweep.
-            let order: [usize; 6] = if settings.chains {
-                [2, 3, 4, 5, 0, 1]
-            } else {
-                [0, 1, 2, 3, 4, 5]
-            };
-            for class in order {
+            let first = if settings.chains { 2 } else { 0 };
+            for class in first..6 {
                 let Some(mode) = modes[class] else { continue };
-                if settings.chains
-                    && class < 2
-                    && let Mode::Compliant { alpha, gamma } = mode
-                {
-                    self.chains(class, (alpha, gamma, settings.chain_iterations));
-                    continue;
-                }
                 let (dr, a_dc, b_dc, _) = CLASSES[class];
                 for colour in 0..2 {
                     if dr == 0 {
                         self.horizontal(b_dc, colour, Rest::Class(class), mode);
                     } else {
                         self.vertical(dr, a_dc, b_dc, colour, Rest::Class(class), mode);
+                    }
+                }
+            }
+            if settings.chains {
+                // `chain_rounds` rounds of warp then weft, each after a contact pass when
+                // there are several.
+                let rounds = settings.chain_rounds;
+                for round in 0..rounds {
+                    if rounds > 1 {
+                        self.contacts(ctx.colliders, h);
+                    }
+                    for (class, mode) in modes.into_iter().enumerate().take(2) {
+                        let Some(Mode::Compliant { alpha, gamma }) = mode else {
+                            continue;
+                        };
+                        let iterations = settings.chain_iterations;
+                        let multipliers = if self.keep || round > 0 {
+                            Multipliers::Kept
+                        } else if iterations > 1 || rounds > 1 {
+                            Multipliers::Fresh
+                        } else {
+                            Multipliers::Unused
+                        };
+                        self.chains(class, (alpha, gamma, iterations), multipliers);
                     }
                 }
             }
@@ -453,7 +467,12 @@ impl XpbdGrid {
     /// (`class` 1, one per row), see [`super::chains`]: blocks of [`super::chains::LANES`] chains
     /// gathered, solved and scattered back, blocks in parallel (each block's chains are
     /// independent of the others', so any thread count gives the same bits).
-    fn chains(&mut self, class: usize, (alpha, gamma, iterations): (f32, f32, u32)) {
+    fn chains(
+        &mut self,
+        class: usize,
+        (alpha, gamma, iterations): (f32, f32, u32),
+        multipliers: Multipliers,
+    ) {
         use super::chains::{self, FIELDS, LANES};
         let (rows, cols) = (self.rows, self.cols);
         let (count, len) = chains::shape(class, rows, cols);
@@ -489,7 +508,14 @@ impl XpbdGrid {
                     lambda,
                     statics,
                 );
-                chains::iterate(chunk, size, len, (alpha, gamma, iterations), keep, kernel);
+                chains::iterate(
+                    chunk,
+                    size,
+                    len,
+                    (alpha, gamma, iterations),
+                    multipliers,
+                    kernel,
+                );
             });
         let scratch = &self.chains[class];
         let [x, y, z] = &mut self.pos;

@@ -250,7 +250,7 @@ fn reference_sweeps(
 }
 
 /// Every spring in storage order; with `chains`, the warp and the weft as chains instead
-/// ([`super::chains::solve_reference`]).
+/// ([`super::chains::solve_reference`]), after the others, in `xpbd.chain_rounds` rounds.
 fn solve_springs(ctx: &mut SubstepCtx<'_>, sc: &mut XpbdScratch, h: f32, chains: bool) {
     let cfg = ctx.config;
     let p = &mut *ctx.particles;
@@ -262,40 +262,19 @@ fn solve_springs(ctx: &mut SubstepCtx<'_>, sc: &mut XpbdScratch, h: f32, chains:
         offset += ctx.topology.springs_of(kind).len();
     }
     // With chains the structural springs go last (as on the grid path).
-    let order = if chains {
-        [
-            SpringKind::Shear,
-            SpringKind::Bend,
-            SpringKind::Warp,
-            SpringKind::Weft,
-        ]
+    let grid = ctx.topology.grid().filter(|_| chains);
+    let kinds: &[SpringKind] = if grid.is_some() {
+        &[SpringKind::Shear, SpringKind::Bend]
     } else {
-        SpringKind::ALL
+        &SpringKind::ALL
     };
-    for kind in order {
+    for &kind in kinds {
         let springs = ctx.topology.springs_of(kind);
         let offset = offsets[kind as usize];
         let lambda = &mut sc.lambda[offset..offset + springs.len()];
         let Some((alpha, gamma)) = compliance(cfg, kind, h) else {
             continue;
         };
-        if chains
-            && let Some((rows, cols)) = ctx.topology.grid()
-            && let Some(class) = [SpringKind::Warp, SpringKind::Weft]
-                .iter()
-                .position(|&k| k == kind)
-        {
-            super::chains::solve_reference(
-                p,
-                &sc.prev,
-                sc.grid.class_rest(class),
-                &mut sc.chain_lambda[class],
-                (rows, cols, class),
-                (alpha, gamma, cfg.xpbd.chain_iterations),
-                &mut sc.chain_scratch,
-            );
-            continue;
-        }
         for (s, lambda) in springs.iter().zip(lambda.iter_mut()) {
             let (a, b) = (s.a as usize, s.b as usize);
             let (wa, wb) = (p.inv_mass[a], p.inv_mass[b]);
@@ -315,6 +294,29 @@ fn solve_springs(ctx: &mut SubstepCtx<'_>, sc: &mut XpbdScratch, h: f32, chains:
             *lambda += dl;
             p.position[a] += (wa * dl) * grad;
             p.position[b] -= (wb * dl) * grad;
+        }
+    }
+    // `chain_rounds` rounds of warp then weft chains, each after a contact pass when there
+    // are several (as on the grid path).
+    let Some((rows, cols)) = grid else { return };
+    let rounds = cfg.xpbd.chain_rounds;
+    for _ in 0..rounds {
+        if rounds > 1 {
+            solve_contacts(ctx, &sc.prev, h);
+        }
+        for (class, kind) in [SpringKind::Warp, SpringKind::Weft].into_iter().enumerate() {
+            let Some((alpha, gamma)) = compliance(cfg, kind, h) else {
+                continue;
+            };
+            super::chains::solve_reference(
+                ctx.particles,
+                &sc.prev,
+                sc.grid.class_rest(class),
+                &mut sc.chain_lambda[class],
+                (rows, cols, class),
+                (alpha, gamma, cfg.xpbd.chain_iterations),
+                &mut sc.chain_scratch,
+            );
         }
     }
 }
