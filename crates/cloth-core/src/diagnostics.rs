@@ -462,7 +462,10 @@ mod tests {
             let lanes = crate::simd::spring_lanes(kernel, &position, &springs, k, limit);
             let sum: f64 = lanes.energy.into_iter().sum();
             assert!((sum - energy).abs() <= 1e-12 * energy, "{sum} vs {energy}");
-            assert_eq!(lanes.max.into_iter().fold(0.0, f32::max).to_bits(), max.to_bits());
+            assert_eq!(
+                lanes.max.into_iter().fold(0.0, f32::max).to_bits(),
+                max.to_bits()
+            );
             assert_eq!(lanes.bad, bad);
         }
     }

@@ -320,14 +320,15 @@ pub(crate) fn shape(class: usize, rows: usize, cols: usize) -> (usize, usize) {
 /// (fields x, y, z, start x, y, z, inverse mass, rest length, multiplier). The inverse masses
 /// and rest lengths only when `statics` (they stay in the block between substeps); the
 /// multipliers only when `lambda` is given (else [`solve`] runs with `keep = false` and never
-/// reads them). Lanes past `lanes` are left as they are (zero: inactive).
+/// reads them); the positions only when `pos` is given (else [`handoff`] copies them from the
+/// warp's blocks). Lanes past `lanes` are left as they are (zero: inactive).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn gather<const L: usize>(
     chunk: &mut [f32],
     len: usize,
     (class, cols): (usize, usize),
     (first, lanes): (usize, usize),
-    pos: [&[f32]; 3],
+    pos: Option<[&[f32]; 3]>,
     prev: [&[f32]; 3],
     w: &[f32],
     rest: &[f32],
@@ -336,10 +337,11 @@ pub(crate) fn gather<const L: usize>(
 ) {
     let size = chunk.len() / FIELDS;
     debug_assert!(size >= len * L);
-    let sources = [pos[0], pos[1], pos[2], prev[0], prev[1], prev[2], w, rest];
-    let fields = sources
+    let pos = pos.map_or([None; 3], |p| p.map(Some));
+    let sources = [prev[0], prev[1], prev[2], w, rest].map(Some);
+    let fields = pos
         .into_iter()
-        .map(Some)
+        .chain(sources)
         .chain([lambda])
         .enumerate()
         .filter(|&(f, _)| statics || !(6..=7).contains(&f));
@@ -367,6 +369,35 @@ pub(crate) fn gather<const L: usize>(
                     for (d, &v) in tile.iter_mut().zip(&src[i..i + n]) {
                         d[lane] = v;
                     }
+                }
+            }
+        }
+    }
+}
+
+/// The positions of weft block `block` (rows `block·L ..`, fields 0, 1, 2) copied straight
+/// from the warp's blocks (`warp`: every column's chain just solved, `stride(rows)` per field),
+/// instead of scattering the warp into the rows and gathering the weft from them: tile `(b,
+/// block)` of 16 columns × 16 rows is a transpose of one contiguous tile into another. The
+/// same values as the round trip through the rows (the warp's lanes past `cols` and steps
+/// past `rows` are not read; the weft's lanes past `rows` are left as they are).
+pub(crate) fn handoff<const L: usize>(
+    chunk: &mut [f32],
+    warp: &[f32],
+    block: usize,
+    (rows, cols): (usize, usize),
+) {
+    let size = chunk.len() / FIELDS;
+    let warp_size = stride(rows);
+    let lanes = L.min(rows - block * L);
+    for f in 0..3 {
+        let dst = &mut chunk[f * size..][..cols * L];
+        for (b, dst) in dst.chunks_mut(L * L).enumerate() {
+            // Warp block b: steps block·L + lane (the weft's lanes), lanes k (its steps).
+            let src = &warp[(b * FIELDS + f) * warp_size..][block * L * L..][..lanes * L];
+            for (k, d) in dst.as_chunks_mut::<L>().0.iter_mut().enumerate() {
+                for (lane, d) in d[..lanes].iter_mut().enumerate() {
+                    *d = src[lane * L + k];
                 }
             }
         }

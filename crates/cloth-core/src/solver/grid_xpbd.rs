@@ -420,6 +420,10 @@ impl XpbdGrid {
                 // `chain_rounds` rounds of warp then weft, each after a contact pass when
                 // there are several.
                 let rounds = settings.chain_rounds;
+                // With both directions solved the weft takes the warp's positions straight from
+                // its blocks (the warp's are not written into the rows in between).
+                let compliant = |m: Option<Mode>| matches!(m, Some(Mode::Compliant { .. }));
+                let handoff = compliant(modes[0]) && compliant(modes[1]);
                 for round in 0..rounds {
                     if rounds > 1 {
                         self.contacts(ctx.colliders, h);
@@ -436,7 +440,7 @@ impl XpbdGrid {
                         } else {
                             Multipliers::Unused
                         };
-                        self.chains(class, (alpha, gamma, iterations), multipliers);
+                        self.chains(class, (alpha, gamma, iterations), multipliers, handoff);
                     }
                 }
             }
@@ -472,6 +476,7 @@ impl XpbdGrid {
         class: usize,
         (alpha, gamma, iterations): (f32, f32, u32),
         multipliers: Multipliers,
+        handoff: bool,
     ) {
         use super::chains::{self, FIELDS, LANES};
         let (rows, cols) = (self.rows, self.cols);
@@ -479,7 +484,12 @@ impl XpbdGrid {
         let size = chains::stride(len);
         let blocks = count.div_ceil(LANES);
         let kernel = crate::simd::kernel();
-        let scratch = &mut self.chains[class];
+        let [warp, weft] = &mut self.chains;
+        let (scratch, warp) = if class == 0 {
+            (warp, None)
+        } else {
+            (weft, handoff.then_some(&warp[..]))
+        };
         if scratch.len() != blocks * FIELDS * size {
             scratch.clear();
             scratch.resize(blocks * FIELDS * size, 0.0);
@@ -496,12 +506,15 @@ impl XpbdGrid {
             .enumerate()
             .for_each(|(b, chunk)| {
                 let first = b * LANES;
+                if let Some(warp) = warp {
+                    chains::handoff::<LANES>(chunk, warp, b, (rows, cols));
+                }
                 chains::gather::<LANES>(
                     chunk,
                     len,
                     (class, cols),
                     (first, LANES.min(count - first)),
-                    [x, y, z],
+                    warp.is_none().then_some([x, y, z]),
                     [&prev[0], &prev[1], &prev[2]],
                     w,
                     rest,
@@ -521,7 +534,14 @@ impl XpbdGrid {
         let [x, y, z] = &mut self.pos;
         let lambda = &mut self.lambda[class];
         // Fields 0, 1, 2 (positions) and 8 (multipliers) back into the rows: by row for the
-        // warp, by block of rows for the weft.
+        // warp, by block of rows for the weft. The warp's positions not when the weft takes
+        // them from the blocks (`handoff`), the multipliers only when kept.
+        let fields: &[usize] = match (class == 0 && handoff, keep) {
+            (false, false) => &[0, 1, 2],
+            (false, true) => &[0, 1, 2, 3],
+            (true, true) => &[3],
+            (true, false) => return,
+        };
         let rows_per = if class == 0 { 1 } else { LANES };
         x.par_chunks_mut(rows_per * cols)
             .zip(y.par_chunks_mut(rows_per * cols))
@@ -530,8 +550,8 @@ impl XpbdGrid {
             .enumerate()
             .for_each(|(i, (((x, y), z), lam))| {
                 let mut dst = [x, y, z, lam];
-                let fields = if keep { 4 } else { 3 };
-                for (f, dst) in dst.iter_mut().take(fields).enumerate() {
+                for &f in fields {
+                    let dst = &mut dst[f];
                     let field = if f == 3 { 8 } else { f };
                     if class == 0 {
                         for (b, block) in scratch.chunks_exact(FIELDS * size).enumerate() {
