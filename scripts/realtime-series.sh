@@ -21,13 +21,15 @@ printf '%-6s %-9s %-6s %-7s %-7s %-6s %-6s %12s %9s %9s %9s %9s %12s\n' res subs
 for setting in "$@"; do
   IFS=: read -r substeps levels mode sweeps newton rounds <<<"$setting"
   newton=${newton:-1}
+  # chain_rounds only when asked for (binaries before it reject the key).
+  with_rounds=${rounds:+,chain_rounds=$rounds}
   rounds=${rounds:-1}
   sweeps=${sweeps:-1}
   chains=false
   [ "${mode:-}" = chains ] && chains=true
   "$bin" sim drape --resolution "$res" --seconds "$seconds" --threads "$threads" ${KERNEL:+--kernel "$KERNEL"} \
     --set 'solver.kind="xpbd"' --set "solver.substeps=$substeps" --set "forces.damping=$damping" \
-    --set "solver.xpbd={iterations=$sweeps,hierarchy_levels=$levels,chains=$chains,chain_iterations=$newton,chain_rounds=$rounds}" \
+    --set "solver.xpbd={iterations=$sweeps,hierarchy_levels=$levels,chains=$chains,chain_iterations=$newton$with_rounds}" \
     --report "$out/r.json" >/dev/null
   python3 - "$out/r.json" "$res" "$substeps" "$levels" "$chains" "$sweeps" "$newton" "$rounds" <<'PY'
 import json, sys
