@@ -23,7 +23,9 @@
 //!    then colour 1, as compliant XPBD constraints (the reference's formula: compliance
 //!    α = 1/k, dashpot as constraint damping); with `XpbdSettings::chains`, shear and bend
 //!    first and then the warp and the weft as whole chains ([`super::chains`]: every column,
-//!    then every row, each solved exactly by a tridiagonal solve, in blocks of 16 chains);
+//!    then every row, each solved exactly by a tridiagonal solve, in blocks of 16 chains, the
+//!    weft taking the warp's positions straight from its blocks), `XpbdSettings::chain_rounds`
+//!    times in turn (each round after a contact pass when there are several);
 //! 2. the multi-resolution strain limits, when `XpbdSettings::hierarchy_levels > 0` (after
 //!    Wang, O'Brien & Ramamoorthi 2010, "Multi-resolution isotropic strain limiting"): for
 //!    each spacing s = 2, 4, …, 2^levels, particles `s` apart along the warp and along the
