@@ -272,6 +272,12 @@ pub(crate) fn spring_lanes(
         max: [0.0; L],
         bad: None,
     };
+    // One spring's share of lane `l`.
+    let add = |out: &mut SpringLanes, l: usize, length: f32, rest: f32| {
+        let stretch = length - rest;
+        out.energy[l] += 0.5 * k * f64::from(stretch) * f64::from(stretch);
+        out.max[l] = out.max[l].max(stretch / rest);
+    };
     let first_bad = |springs: &[crate::topology::Spring]| {
         springs.iter().position(|s| {
             position[s.a as usize].distance(position[s.b as usize]) > limit * s.rest_length
@@ -288,9 +294,7 @@ pub(crate) fn spring_lanes(
         let mut over = false;
         for l in 0..L {
             let length = (d[0][l] * d[0][l] + d[1][l] * d[1][l] + d[2][l] * d[2][l]).sqrt();
-            let stretch = length - rest[l];
-            out.energy[l] += 0.5 * k * f64::from(stretch) * f64::from(stretch);
-            out.max[l] = out.max[l].max(stretch / rest[l]);
+            add(&mut out, l, length, rest[l]);
             over |= length > limit * rest[l];
         }
         if over && out.bad.is_none() {
@@ -299,9 +303,7 @@ pub(crate) fn spring_lanes(
     }
     for (l, s) in tail.iter().enumerate() {
         let length = position[s.a as usize].distance(position[s.b as usize]);
-        let stretch = length - s.rest_length;
-        out.energy[l] += 0.5 * k * f64::from(stretch) * f64::from(stretch);
-        out.max[l] = out.max[l].max(stretch / s.rest_length);
+        add(&mut out, l, length, s.rest_length);
     }
     if out.bad.is_none() {
         out.bad = first_bad(tail).map(|j| groups.len() * L + j);

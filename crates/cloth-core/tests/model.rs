@@ -523,12 +523,12 @@ fn bad_configs() -> Vec<(SimConfig, &'static str, &'static str)> {
         "config.substeps",
         "1 ..= 100000",
     ));
-    for chain_iterations in [0, 17] {
+    for outside in [0, 17] {
         let mut c = d();
-        c.xpbd.chain_iterations = chain_iterations;
+        c.xpbd.chain_iterations = outside;
         v.push((c, "config.xpbd.chain_iterations", "1 ..= 16"));
         let mut c = d();
-        c.xpbd.chain_rounds = chain_iterations;
+        c.xpbd.chain_rounds = outside;
         v.push((c, "config.xpbd.chain_rounds", "1 ..= 16"));
     }
     v.push((

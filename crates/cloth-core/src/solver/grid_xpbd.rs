@@ -426,21 +426,21 @@ impl XpbdGrid {
                 // its blocks (the warp's are not written into the rows in between).
                 let compliant = |m: Option<Mode>| matches!(m, Some(Mode::Compliant { .. }));
                 let handoff = compliant(modes[0]) && compliant(modes[1]);
+                let iterations = settings.chain_iterations;
                 for round in 0..rounds {
                     if rounds > 1 {
                         self.contacts(ctx.colliders, h);
                     }
+                    let multipliers = if self.keep || round > 0 {
+                        Multipliers::Kept
+                    } else if iterations > 1 || rounds > 1 {
+                        Multipliers::Fresh
+                    } else {
+                        Multipliers::Unused
+                    };
                     for (class, mode) in modes.into_iter().enumerate().take(2) {
                         let Some(Mode::Compliant { alpha, gamma }) = mode else {
                             continue;
-                        };
-                        let iterations = settings.chain_iterations;
-                        let multipliers = if self.keep || round > 0 {
-                            Multipliers::Kept
-                        } else if iterations > 1 || rounds > 1 {
-                            Multipliers::Fresh
-                        } else {
-                            Multipliers::Unused
                         };
                         self.chains(class, (alpha, gamma, iterations), multipliers, handoff);
                     }

@@ -37,6 +37,12 @@ impl Clone for Placed {
 }
 
 impl Placed {
+    /// Where the array lies in the allocation (its length: the allocation less the page of
+    /// slack).
+    fn range(&self) -> std::ops::Range<usize> {
+        self.offset..self.offset + self.buf.len().saturating_sub(PAGE)
+    }
+
     /// Makes the array `len` zeros starting at the page line of `slot` (one page of slack
     /// allocated; reuses the allocation when it is large enough).
     pub(crate) fn reset(&mut self, len: usize, slot: usize) {
@@ -52,15 +58,14 @@ impl Placed {
 impl std::ops::Deref for Placed {
     type Target = [f32];
     fn deref(&self) -> &[f32] {
-        let len = self.buf.len().saturating_sub(PAGE);
-        &self.buf[self.offset..self.offset + len]
+        &self.buf[self.range()]
     }
 }
 
 impl std::ops::DerefMut for Placed {
     fn deref_mut(&mut self) -> &mut [f32] {
-        let len = self.buf.len().saturating_sub(PAGE);
-        &mut self.buf[self.offset..self.offset + len]
+        let range = self.range();
+        &mut self.buf[range]
     }
 }
 
