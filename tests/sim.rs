@@ -3,7 +3,7 @@
 //! fields, a resumed run ends bit-identical to an uninterrupted one, and every kind of bad input
 //! exits with status 2 and one message naming the file, line, column and key.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 fn cloth(args: &[&str]) -> (i32, String, String) {
@@ -18,11 +18,12 @@ fn cloth(args: &[&str]) -> (i32, String, String) {
     )
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("cloth-sim-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    dir
+/// A fresh directory for one test's files, removed when the returned guard drops.
+fn tmp(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("cloth-sim-test-{name}-"))
+        .tempdir()
+        .expect("temp dir")
 }
 
 fn s(p: &Path) -> &str {
@@ -46,7 +47,8 @@ fn every_builtin_scene_runs_ok() {
     for name in ["drape", "hanging", "flag", "peer-ball", "table"] {
         assert!(names.contains(&name), "{name} missing from {list}");
     }
-    let dir = tmp("builtin");
+    let guard = tmp("builtin");
+    let dir = guard.path();
     for name in names {
         let rep = dir.join(format!("{name}.json"));
         let (code, out, err) = cloth(&[
@@ -72,7 +74,8 @@ fn every_builtin_scene_runs_ok() {
 /// morph target per exported frame.
 #[test]
 fn exports_parse_with_independent_parsers() {
-    let dir = tmp("export");
+    let guard = tmp("export");
+    let dir = guard.path();
     let out = dir.join("out");
     let (code, _, err) = cloth(&[
         "sim",
@@ -172,7 +175,8 @@ fn exports_parse_with_independent_parsers() {
 /// The report holds its documented fields (docs/scenes.md, "Run report").
 #[test]
 fn report_has_its_documented_fields() {
-    let dir = tmp("report");
+    let guard = tmp("report");
+    let dir = guard.path();
     let rep = dir.join("r.json");
     let (code, _, err) = cloth(&[
         "sim",
@@ -239,7 +243,8 @@ fn report_has_its_documented_fields() {
 /// thread count does not change a bit either.
 #[test]
 fn resume_and_threads_give_identical_bits() {
-    let dir = tmp("resume");
+    let guard = tmp("resume");
+    let dir = guard.path();
     let (a, b, c) = (dir.join("a"), dir.join("b"), dir.join("c"));
     let base = [
         "sim",
@@ -277,7 +282,8 @@ fn resume_and_threads_give_identical_bits() {
 /// status "unstable" naming the step.
 #[test]
 fn unstable_runs_exit_3_with_report() {
-    let dir = tmp("unstable");
+    let guard = tmp("unstable");
+    let dir = guard.path();
     let rep = dir.join("r.json");
     let out = dir.join("out");
     let (code, _, err) = cloth(&[
@@ -324,7 +330,8 @@ fn bad(args: &[&str], needles: &[&str]) {
 /// what is allowed; never a panic.
 #[test]
 fn bad_input_is_named_precisely() {
-    let dir = tmp("bad");
+    let guard = tmp("bad");
+    let dir = guard.path();
     let write = |name: &str, text: &[u8]| {
         let p = dir.join(name);
         std::fs::write(&p, text).expect("write");
@@ -414,7 +421,8 @@ fn check_summarises_without_running() {
 #[cfg(unix)]
 #[test]
 fn interrupted_runs_write_their_report() {
-    let dir = tmp("interrupt");
+    let guard = tmp("interrupt");
+    let dir = guard.path();
     let rep = dir.join("r.json");
     let mut child = Command::new(env!("CARGO_BIN_EXE_cloth"))
         .args([
