@@ -454,12 +454,12 @@ fn spring_lanes_avx512(
     crate::diagnostics::spring_lanes(position, springs, k, limit)
 }
 
-/// XPBD's contacts of a run of particles with one sphere or plane that does not turn, on the
-/// arrays ([`grid_xpbd::contact_soa`]; the same bits on every kernel). Returns the contact
-/// count.
+/// XPBD's contacts of a run of particles with colliders that are all spheres or planes that
+/// do not turn, on the arrays ([`grid_xpbd::contacts_soa_row`]: the pre-test and the exact
+/// kernel; the same bits on every kernel). Returns the contact count.
 pub(crate) fn xpbd_contacts(
     kernel: Kernel,
-    col: &crate::collide::Collider,
+    colliders: &[crate::collide::Collider],
     h: f32,
     w: &[f32],
     x: [&mut [f32]; 3],
@@ -469,37 +469,37 @@ pub(crate) fn xpbd_contacts(
         #[cfg(target_arch = "x86_64")]
         Kernel::Avx512 if Kernel::Avx512.is_available() => {
             // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { contacts_avx512(col, h, w, x, x0) }
+            unsafe { contacts_avx512(colliders, h, w, x, x0) }
         }
         #[cfg(target_arch = "x86_64")]
         Kernel::Avx2 if Kernel::Avx2.is_available() => {
             // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { contacts_avx2(col, h, w, x, x0) }
+            unsafe { contacts_avx2(colliders, h, w, x, x0) }
         }
-        _ => grid_xpbd::contact_soa(col, h, w, x, x0),
+        _ => grid_xpbd::contacts_soa_row(colliders, h, w, x, x0),
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn contacts_avx2(
-    col: &crate::collide::Collider,
+    colliders: &[crate::collide::Collider],
     h: f32,
     w: &[f32],
     x: [&mut [f32]; 3],
     x0: [&[f32]; 3],
 ) -> u32 {
-    grid_xpbd::contact_soa(col, h, w, x, x0)
+    grid_xpbd::contacts_soa_row(colliders, h, w, x, x0)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
 fn contacts_avx512(
-    col: &crate::collide::Collider,
+    colliders: &[crate::collide::Collider],
     h: f32,
     w: &[f32],
     x: [&mut [f32]; 3],
     x0: [&[f32]; 3],
 ) -> u32 {
-    grid_xpbd::contact_soa(col, h, w, x, x0)
+    grid_xpbd::contacts_soa_row(colliders, h, w, x, x0)
 }

@@ -35,8 +35,10 @@
 //!    substeps) for;
 //! 3. collider contacts with position-level Coulomb friction: the reference's routine
 //!    ([`super::xpbd::contact`]), on the arrays for spheres and planes that do not turn
-//!    ([`contact_soa`], every lane computed and selected, the same bits), per particle for
-//!    other colliders; chunks clear of every collider are skipped.
+//!    ([`contact_soa`], every lane computed and selected, the same bits; run collider by
+//!    collider on the 16-particle sub-chunks not clear of that collider,
+//!    [`contacts_soa_row`]), per particle for other colliders (chunks clear of every collider
+//!    skipped).
 //!
 //! The substep's state stays in structure-of-arrays form (x, y, z, vx, vy, vz and the start
 //! positions) from the first substep of a step to its end ([`XpbdGrid::sync`], called by the
@@ -726,10 +728,12 @@ impl XpbdGrid {
     /// Collider contacts of every particle, rows in parallel (every sweep but the last, whose
     /// contacts run, and are counted, in [`Self::finish`]).
     ///
-    /// Chunks of [`NEAR_CHUNK`] particles clear of every collider ([`near_any`]) are skipped.
-    /// When every collider is a sphere or a plane that does not turn, a chunk's contacts run
-    /// on the arrays ([`contact_soa`], the per-particle routine's operations in every lane,
-    /// selected), else per particle ([`super::xpbd::contact`]); both give the same bits.
+    /// When every collider is a sphere or a plane that does not turn, the contacts run on the
+    /// arrays ([`contacts_soa_row`]: collider by collider, [`contact_soa`] on the sub-chunks
+    /// of [`NEAR_SUB`] particles not clear of it, the per-particle routine's operations in
+    /// every lane, selected), else per particle ([`super::xpbd::contact`]) on the chunks of
+    /// [`NEAR_CHUNK`] particles not clear of every collider ([`near_any`]); both give the
+    /// same bits.
     fn contacts(&mut self, colliders: &[crate::collide::Collider], h: f32) {
         if colliders.is_empty() {
             return;
@@ -927,9 +931,14 @@ impl<'a> RowContacts<'a> {
     }
 
     /// The contacts of one row: positions `x, y, z` (updated), start positions `p0`, inverse
-    /// masses `w`, in chunks of [`NEAR_CHUNK`]. Returns the contact count.
+    /// masses `w`: on the arrays ([`contacts_soa_row`]) when every collider is a sphere or a
+    /// plane that does not turn, else per particle in chunks of [`NEAR_CHUNK`]. Returns the
+    /// contact count.
     fn row(&self, [x, y, z]: [&mut [f32]; 3], p0: [&[f32]; 3], w: &[f32]) -> u32 {
         let (colliders, h) = (self.colliders, self.h);
+        if self.soa {
+            return crate::simd::xpbd_contacts(self.kernel, colliders, h, w, [x, y, z], p0);
+        }
         let mut count = 0;
         let mut near = [false; NEAR_CHUNK];
         for c0 in (0..x.len()).step_by(NEAR_CHUNK) {
@@ -940,32 +949,6 @@ impl<'a> RowContacts<'a> {
                 [&x[run.clone()], &y[run.clone()], &z[run.clone()]],
                 &mut near[..n],
             );
-            if self.soa {
-                if !near[..n].contains(&true) {
-                    continue;
-                }
-                let (x, y, z) = (
-                    &mut x[run.clone()],
-                    &mut y[run.clone()],
-                    &mut z[run.clone()],
-                );
-                let p0 = [
-                    &p0[0][run.clone()],
-                    &p0[1][run.clone()],
-                    &p0[2][run.clone()],
-                ];
-                for col in colliders {
-                    count += crate::simd::xpbd_contacts(
-                        self.kernel,
-                        col,
-                        h,
-                        &w[run.clone()],
-                        [&mut *x, &mut *y, &mut *z],
-                        p0,
-                    );
-                }
-                continue;
-            }
             for (k, &near) in near[..n].iter().enumerate() {
                 let c = c0 + k;
                 if !near || w[c] == 0.0 {
@@ -1093,6 +1076,92 @@ fn soa_colliders(colliders: &[crate::collide::Collider]) -> bool {
     })
 }
 
+/// The contacts of a run of particles (positions `x`, `y`, `z` updated in place, start
+/// positions `p0`, inverse masses `w`) with `colliders`, every one a sphere or a plane that
+/// does not turn ([`soa_colliders`]): in sub-chunks of [`NEAR_SUB`] particles, collider by
+/// collider in order, [`contact_soa`] on each sub-chunk that holds a particle not
+/// [`surely_clear`] of that collider at that point. A skipped sub-chunk is one the exact
+/// routine leaves as it is (every particle clear of the contact layer), so the same bits as
+/// [`contact_soa`] on the whole run, collider after collider. Returns the contact count.
+#[inline(always)]
+pub(crate) fn contacts_soa_row(
+    colliders: &[crate::collide::Collider],
+    h: f32,
+    w: &[f32],
+    [x, y, z]: [&mut [f32]; 3],
+    p0: [&[f32]; 3],
+) -> u32 {
+    let n = w.len();
+    let mut count = 0;
+    let mut s0 = 0;
+    while s0 < n {
+        let m = NEAR_SUB.min(n - s0);
+        let sub = s0..s0 + m;
+        for col in colliders {
+            // Whole sub-chunks as fixed-length loops (vectorised), the tail as it is.
+            let near = if m == NEAR_SUB {
+                near_one(
+                    col,
+                    [
+                        &x[s0..s0 + NEAR_SUB],
+                        &y[s0..s0 + NEAR_SUB],
+                        &z[s0..s0 + NEAR_SUB],
+                    ],
+                )
+            } else {
+                near_one(col, [&x[sub.clone()], &y[sub.clone()], &z[sub.clone()]])
+            };
+            if near {
+                count += contact_soa(
+                    col,
+                    h,
+                    &w[sub.clone()],
+                    [
+                        &mut x[sub.clone()],
+                        &mut y[sub.clone()],
+                        &mut z[sub.clone()],
+                    ],
+                    [
+                        &p0[0][sub.clone()],
+                        &p0[1][sub.clone()],
+                        &p0[2][sub.clone()],
+                    ],
+                );
+            }
+        }
+        s0 += m;
+    }
+    count
+}
+
+/// Whether a particle of the run `x, y, z` is not [`surely_clear`] of `col` (a sphere or a
+/// plane; `true` for every other shape), as one reduction over the run.
+#[inline(always)]
+fn near_one(col: &crate::collide::Collider, [x, y, z]: [&[f32]; 3]) -> bool {
+    use crate::collide::Shape;
+    let n = x.len();
+    let (y, z) = (&y[..n], &z[..n]);
+    let mut near = false;
+    match col.shape {
+        Shape::Sphere { center, radius } => {
+            let reach = radius + col.thickness + CLEAR_MARGIN;
+            let reach_sq = reach * reach;
+            for k in 0..n {
+                let d = Vec3::new(x[k], y[k], z[k]) - center;
+                near |= d.length_squared() <= reach_sq;
+            }
+        }
+        Shape::Plane { point, normal } => {
+            let limit = col.thickness + CLEAR_MARGIN;
+            for k in 0..n {
+                near |= (Vec3::new(x[k], y[k], z[k]) - point).dot(normal) <= limit;
+            }
+        }
+        _ => near = true,
+    }
+    near
+}
+
 /// [`super::xpbd::contact`] with collider `col` (a sphere or a plane that does not turn) for
 /// every free particle of a run (positions `x`, `y`, `z` updated in place, start positions
 /// `p0`, inverse masses `w`): the same operations in the same order (`Shape::distance`, the
@@ -1203,6 +1272,10 @@ const BLOCK_SPACING: usize = 16;
 
 /// Particles per chunk of the vectorised contact pre-test.
 const NEAR_CHUNK: usize = 64;
+
+/// Particles per sub-chunk of a chunk that the contact kernel runs on (or skips) as a whole,
+/// collider by collider.
+const NEAR_SUB: usize = 16;
 
 /// `near[k]`: whether particle `k` of a chunk is not [`surely_clear`] of some collider (at
 /// its current position), as plain loops over the chunk that the compiler vectorises. A
