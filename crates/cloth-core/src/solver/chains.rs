@@ -324,7 +324,9 @@ pub(crate) fn shape(class: usize, rows: usize, cols: usize) -> (usize, usize) {
 /// and rest lengths only when `statics` (they stay in the block between substeps); the
 /// multipliers only when `lambda` is given (else [`solve`] runs with `keep = false` and never
 /// reads them); the positions only when `pos` is given (else [`handoff`] copies them from the
-/// warp's blocks). Lanes past `lanes` are left as they are (zero: inactive).
+/// warp's blocks); the start positions only when `prev` is given (they stay in the block for
+/// the substep's later rounds and sweeps). Lanes past `lanes` are left as they are (zero:
+/// inactive).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn gather<const L: usize>(
     chunk: &mut [f32],
@@ -332,7 +334,7 @@ pub(crate) fn gather<const L: usize>(
     (class, cols): (usize, usize),
     (first, lanes): (usize, usize),
     pos: Option<[&[f32]; 3]>,
-    prev: [&[f32]; 3],
+    prev: Option<[&[f32]; 3]>,
     w: &[f32],
     rest: &[f32],
     lambda: Option<&[f32]>,
@@ -341,10 +343,11 @@ pub(crate) fn gather<const L: usize>(
     let size = chunk.len() / FIELDS;
     debug_assert!(size >= len * L);
     let pos = pos.map_or([None; 3], |p| p.map(Some));
-    let sources = [prev[0], prev[1], prev[2], w, rest].map(Some);
+    let prev = prev.map_or([None; 3], |p| p.map(Some));
     let fields = pos
         .into_iter()
-        .chain(sources)
+        .chain(prev)
+        .chain([Some(w), Some(rest)])
         .chain([lambda])
         .enumerate()
         .filter(|&(f, _)| statics || !(6..=7).contains(&f));

@@ -123,6 +123,9 @@ pub(crate) struct XpbdGrid {
     chains: [Vec<f32>; 2],
     /// Whether each direction's blocks hold the current inverse masses and rest lengths.
     chain_statics: [bool; 2],
+    /// Whether each direction's blocks hold this substep's start positions (reset by
+    /// [`XpbdGrid::sweeps`]; later rounds and sweeps of the substep reuse them).
+    chain_starts: [bool; 2],
     /// Whether `pos` and `vel` hold the state (from the first substep of a step to
     /// [`XpbdGrid::sync`] at its end) rather than the particles.
     resident: bool,
@@ -393,6 +396,7 @@ impl XpbdGrid {
             );
         }
         self.keep = settings.iterations > 1;
+        self.chain_starts = [false; 2];
         if self.keep {
             for l in &mut self.lambda {
                 l.fill(0.0);
@@ -501,6 +505,8 @@ impl XpbdGrid {
         }
         let statics = !self.chain_statics[class];
         self.chain_statics[class] = true;
+        let starts = statics || !self.chain_starts[class];
+        self.chain_starts[class] = true;
         let [x, y, z] = &self.pos;
         let (prev, w, rest) = (&self.prev, &self.inv_mass, &self.rest[class]);
         let keep = self.keep;
@@ -519,7 +525,7 @@ impl XpbdGrid {
                     (class, cols),
                     (first, LANES.min(count - first)),
                     warp.is_none().then_some([x, y, z]),
-                    [&prev[0], &prev[1], &prev[2]],
+                    starts.then_some([&prev[0], &prev[1], &prev[2]]),
                     w,
                     rest,
                     lambda,
