@@ -9,6 +9,10 @@
 //! division are exact in every instruction set, so **all kernels give the same bits as the
 //! reference path** (tested in `tests/fast_path.rs`).
 //!
+//! One kernel is written with explicit intrinsics instead: the 16 × 16 tile transposes of the
+//! chain solves' blocks (`transpose16`), pure data movement (AVX shuffles; loads and stores
+//! through `bytemuck` casts of `[f32; 8]`, so without `unsafe`).
+//!
 //! This is the crate's only module with `unsafe`: calling a `#[target_feature]` function,
 //! which is sound only on a CPU that has the features; every call is guarded.
 #![allow(unsafe_code)]
@@ -502,4 +506,121 @@ fn contacts_avx512(
     x0: [&[f32]; 3],
 ) -> u32 {
     grid_xpbd::contacts_soa_row(colliders, h, w, x, x0)
+}
+
+/// Transposes one tile of 16 × 16 floats: `dst[k·dst_stride + l] = src[l·src_stride + k]`
+/// for `k, l < 16` (rows `l` of `src`, `src_stride` apart, become columns of `dst`). With
+/// AVX (any kernel but the portable one, on a CPU that has it) as four 8 × 8 transposes in
+/// registers, else element by element ([`chains::transpose16`]); the same values either way.
+pub(crate) fn transpose16(
+    kernel: Kernel,
+    src: &[f32],
+    src_stride: usize,
+    dst: &mut [f32],
+    dst_stride: usize,
+) {
+    match kernel {
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 | Kernel::Avx512 if Kernel::Avx2.is_available() => {
+            // SAFETY: the CPU has AVX2 (checked on the line above), which includes AVX.
+            unsafe { transpose16_avx(src, src_stride, dst, dst_stride) }
+        }
+        _ => chains::transpose16(src, src_stride, dst, dst_stride),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+fn transpose16_avx(src: &[f32], src_stride: usize, dst: &mut [f32], dst_stride: usize) {
+    use std::arch::x86_64::__m256;
+    for bi in 0..2 {
+        for bj in 0..2 {
+            // The 8 × 8 block of source rows 8·bi.. and columns 8·bj...
+            let mut r = [bytemuck::Zeroable::zeroed(); 8];
+            for (i, r) in r.iter_mut().enumerate() {
+                let row: [f32; 8] = *src[(8 * bi + i) * src_stride + 8 * bj..]
+                    .first_chunk()
+                    .expect("16 floats per source row");
+                *r = bytemuck::cast::<[f32; 8], __m256>(row);
+            }
+            let o = transpose8(r);
+            for (i, o) in o.into_iter().enumerate() {
+                let out: &mut [f32; 8] = dst[(8 * bj + i) * dst_stride + 8 * bi..]
+                    .first_chunk_mut()
+                    .expect("16 floats per destination row");
+                *out = bytemuck::cast::<__m256, [f32; 8]>(o);
+            }
+        }
+    }
+}
+
+/// The transpose of 8 rows of 8 floats in AVX registers (unpack, shuffle, swap of halves).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+#[inline]
+fn transpose8(r: [std::arch::x86_64::__m256; 8]) -> [std::arch::x86_64::__m256; 8] {
+    use std::arch::x86_64::{
+        _mm256_permute2f128_ps, _mm256_shuffle_ps, _mm256_unpackhi_ps, _mm256_unpacklo_ps,
+    };
+    // t: pairs of rows interleaved; s: quadruples; then the 128-bit halves exchanged.
+    let t = [
+        _mm256_unpacklo_ps(r[0], r[1]),
+        _mm256_unpackhi_ps(r[0], r[1]),
+        _mm256_unpacklo_ps(r[2], r[3]),
+        _mm256_unpackhi_ps(r[2], r[3]),
+        _mm256_unpacklo_ps(r[4], r[5]),
+        _mm256_unpackhi_ps(r[4], r[5]),
+        _mm256_unpacklo_ps(r[6], r[7]),
+        _mm256_unpackhi_ps(r[6], r[7]),
+    ];
+    let s = [
+        _mm256_shuffle_ps::<0x44>(t[0], t[2]),
+        _mm256_shuffle_ps::<0xEE>(t[0], t[2]),
+        _mm256_shuffle_ps::<0x44>(t[1], t[3]),
+        _mm256_shuffle_ps::<0xEE>(t[1], t[3]),
+        _mm256_shuffle_ps::<0x44>(t[4], t[6]),
+        _mm256_shuffle_ps::<0xEE>(t[4], t[6]),
+        _mm256_shuffle_ps::<0x44>(t[5], t[7]),
+        _mm256_shuffle_ps::<0xEE>(t[5], t[7]),
+    ];
+    [
+        _mm256_permute2f128_ps::<0x20>(s[0], s[4]),
+        _mm256_permute2f128_ps::<0x20>(s[1], s[5]),
+        _mm256_permute2f128_ps::<0x20>(s[2], s[6]),
+        _mm256_permute2f128_ps::<0x20>(s[3], s[7]),
+        _mm256_permute2f128_ps::<0x31>(s[0], s[4]),
+        _mm256_permute2f128_ps::<0x31>(s[1], s[5]),
+        _mm256_permute2f128_ps::<0x31>(s[2], s[6]),
+        _mm256_permute2f128_ps::<0x31>(s[3], s[7]),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every kernel's tile transpose moves each value to its transposed place (distinct values,
+    /// source and destination strides of 16 and of a row width; nothing else is written).
+    #[test]
+    fn transpose16_moves_every_value_to_its_transposed_place() {
+        for (src_stride, dst_stride) in [(16, 16), (37, 16), (16, 41)] {
+            let src: Vec<f32> = (0..16 * src_stride).map(|i| i as f32 + 0.5).collect();
+            for kernel in Kernel::ALL.into_iter().filter(|k| k.is_available()) {
+                let mut dst = vec![-1.0_f32; 16 * dst_stride];
+                transpose16(kernel, &src, src_stride, &mut dst, dst_stride);
+                // dst[r·dst_stride + c] = src[c·src_stride + r] for c < 16; the rest untouched.
+                for r in 0..16 {
+                    for c in 0..dst_stride {
+                        let want = if c < 16 {
+                            src[c * src_stride + r]
+                        } else {
+                            -1.0
+                        };
+                        let got = dst[r * dst_stride + c];
+                        assert_eq!(got, want, "{kernel:?} {src_stride}/{dst_stride} ({r}, {c})");
+                    }
+                }
+            }
+        }
+    }
 }

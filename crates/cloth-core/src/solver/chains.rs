@@ -339,6 +339,7 @@ pub(crate) fn gather<const L: usize>(
     rest: &[f32],
     lambda: Option<&[f32]>,
     statics: bool,
+    kernel: crate::simd::Kernel,
 ) {
     let size = chunk.len() / FIELDS;
     debug_assert!(size >= len * L);
@@ -365,11 +366,17 @@ pub(crate) fn gather<const L: usize>(
                 }
             }
         } else {
-            // A transpose, in tiles of TILE steps (each tile's rows stay in L1).
+            // A transpose, in tiles of TILE steps (each tile's rows stay in L1); whole 16 × 16
+            // tiles with the kernel's transpose.
             let dst = &mut dst.as_chunks_mut::<L>().0[..len];
             for k0 in (0..len).step_by(TILE) {
                 let tile = &mut dst[k0..(k0 + TILE).min(len)];
                 let n = tile.len();
+                if L == 16 && TILE == 16 && lanes == L && n == TILE {
+                    let src = &src[at(class, cols, first, k0)..];
+                    crate::simd::transpose16(kernel, src, cols, tile.as_flattened_mut(), L);
+                    continue;
+                }
                 for lane in 0..lanes {
                     let i = at(class, cols, first + lane, k0);
                     for (d, &v) in tile.iter_mut().zip(&src[i..i + n]) {
@@ -392,6 +399,7 @@ pub(crate) fn handoff<const L: usize>(
     warp: &[f32],
     block: usize,
     (rows, cols): (usize, usize),
+    kernel: crate::simd::Kernel,
 ) {
     let size = chunk.len() / FIELDS;
     let warp_size = stride(rows);
@@ -401,6 +409,10 @@ pub(crate) fn handoff<const L: usize>(
         for (b, dst) in dst.chunks_mut(L * L).enumerate() {
             // Warp block b: steps block·L + lane (the weft's lanes), lanes k (its steps).
             let src = &warp[(b * FIELDS + f) * warp_size..][block * L * L..][..lanes * L];
+            if L == 16 && lanes == L && dst.len() == L * L {
+                crate::simd::transpose16(kernel, src, L, dst, L);
+                continue;
+            }
             for (k, d) in dst.as_chunks_mut::<L>().0.iter_mut().enumerate() {
                 for (lane, d) in d[..lanes].iter_mut().enumerate() {
                     *d = src[lane * L + k];
@@ -413,10 +425,21 @@ pub(crate) fn handoff<const L: usize>(
 /// Copies one field of a weft block (`src`: `len` steps of `L` lanes, step-major) back into
 /// the rows `dst` (`cols` entries each, one row per lane): the transpose of [`gather`]'s, in
 /// tiles.
-pub(crate) fn scatter_rows<const L: usize>(src: &[f32], len: usize, dst: &mut [f32], cols: usize) {
+pub(crate) fn scatter_rows<const L: usize>(
+    src: &[f32],
+    len: usize,
+    dst: &mut [f32],
+    cols: usize,
+    kernel: crate::simd::Kernel,
+) {
     let src = &src.as_chunks::<L>().0[..len];
+    let full_rows = dst.len() >= L * cols;
     for k0 in (0..len).step_by(TILE) {
         let tile = &src[k0..(k0 + TILE).min(len)];
+        if L == 16 && TILE == 16 && full_rows && tile.len() == TILE {
+            crate::simd::transpose16(kernel, tile.as_flattened(), L, &mut dst[k0..], cols);
+            continue;
+        }
         for (lane, row) in dst.chunks_exact_mut(cols).enumerate().take(L) {
             for (d, s) in row[k0..k0 + tile.len()].iter_mut().zip(tile) {
                 *d = s[lane];
@@ -472,6 +495,18 @@ pub(crate) fn solve_reference(
             particles.position[i] =
                 glam::Vec3::new(scratch[k], scratch[len + k], scratch[2 * len + k]);
             lambda[i] = scratch[8 * len + k];
+        }
+    }
+}
+
+/// One tile of 16 × 16 floats transposed element by element: `dst[k·dst_stride + l] =
+/// src[l·src_stride + k]` for `k, l < 16` (the portable version of
+/// [`crate::simd::transpose16`]).
+pub(crate) fn transpose16(src: &[f32], src_stride: usize, dst: &mut [f32], dst_stride: usize) {
+    for l in 0..16 {
+        let row = &src[l * src_stride..][..16];
+        for (k, &v) in row.iter().enumerate() {
+            dst[k * dst_stride + l] = v;
         }
     }
 }

@@ -517,7 +517,7 @@ impl XpbdGrid {
             .for_each(|(b, chunk)| {
                 let first = b * LANES;
                 if let Some(warp) = warp {
-                    chains::handoff::<LANES>(chunk, warp, b, (rows, cols));
+                    chains::handoff::<LANES>(chunk, warp, b, (rows, cols), kernel);
                 }
                 chains::gather::<LANES>(
                     chunk,
@@ -530,6 +530,7 @@ impl XpbdGrid {
                     rest,
                     lambda,
                     statics,
+                    kernel,
                 );
                 chains::iterate(
                     chunk,
@@ -579,7 +580,7 @@ impl XpbdGrid {
                     } else {
                         let block = &scratch[i * FIELDS * size..][..FIELDS * size];
                         let src = &block[field * size..][..size];
-                        chains::scatter_rows::<LANES>(src, len, dst, cols);
+                        chains::scatter_rows::<LANES>(src, len, dst, cols, kernel);
                     }
                 }
             });
