@@ -60,8 +60,8 @@ pub(crate) fn stride(len: usize) -> usize {
 }
 
 /// Arrays per block: x, y, z, start x, y, z, inverse mass, rest length, multiplier, direction
-/// x, y, z, the eliminated super-diagonal and right-hand side.
-pub(crate) const FIELDS: usize = 14;
+/// x, y, z, the eliminated super-diagonal and right-hand side, the diagonal.
+pub(crate) const FIELDS: usize = 15;
 
 /// One block of `L` chains of `len` particles, step-major (entry `(k, lane)` at `k·L + lane`;
 /// the per-spring arrays use entries `k < len − 1`, spring `k` joining particles `k` and
@@ -83,6 +83,8 @@ pub(crate) struct Block<'a> {
     pub cp: &'a mut [f32],
     /// Scratch: right-hand side after elimination.
     pub dp: &'a mut [f32],
+    /// Scratch: the diagonal before elimination.
+    pub diag: &'a mut [f32],
 }
 
 impl<'a> Block<'a> {
@@ -98,6 +100,7 @@ impl<'a> Block<'a> {
         let n = [next(), next(), next()];
         let cp = next();
         let dp = next();
+        let diag = next();
         Self {
             x,
             prev,
@@ -107,6 +110,7 @@ impl<'a> Block<'a> {
             n,
             cp,
             dp,
+            diag,
         }
     }
 }
@@ -133,95 +137,136 @@ pub(crate) fn solve<const L: usize>(
         mut n,
         cp,
         dp,
+        diag,
     } = block;
     debug_assert!(len >= 2);
     let g1 = 1.0 + gamma;
     let w = &w.as_chunks::<L>().0[..len];
     let rest = &rest.as_chunks::<L>().0[..len];
     let [px, py, pz] = prev.map(|a| &a.as_chunks::<L>().0[..len]);
+    // The forward elimination in two loops: first everything that does not depend on the
+    // elimination's recurrence (directions, constraint values, right-hand sides, diagonals and
+    // couplings of every spring: independent steps that the processor overlaps), then the
+    // recurrence itself (a short loop of two divisions per step). The recurrences go through
+    // the block's arrays (each step reads what the step before it wrote, from L1), not through
+    // arrays carried in the loop, which the compiler split into scalars or spilled. The same
+    // operations per lane as one fused loop, so the same bits.
     {
         let [xs, ys, zs] = x.each_ref().map(|a| &a.as_chunks::<L>().0[..len]);
         let lam = &lambda.as_chunks::<L>().0[..len];
         let [nx, ny, nz] = n.each_mut().map(|a| &mut a.as_chunks_mut::<L>().0[..len]);
         let cp = &mut cp.as_chunks_mut::<L>().0[..len];
         let dp = &mut dp.as_chunks_mut::<L>().0[..len];
-        // Carried from spring k − 1: its eliminated diagonal, right-hand side and direction.
-        let mut m_prev = [1.0_f32; L];
-        let mut dp_prev = [0.0_f32; L];
-        let mut n_prev = [[0.0_f32; L]; 3];
-        for k in 0..len - 1 {
-            let (a, b) = (k, k + 1);
-            // Local copies: the lane loop then reads and writes only locals and vectorises
-            // without alias checks.
-            let (xa, xb, ya, yb, za, zb) = (xs[a], xs[b], ys[a], ys[b], zs[a], zs[b]);
-            let (pxa, pxb, pya, pyb, pza, pzb) = (px[a], px[b], py[a], py[b], pz[a], pz[b]);
-            // Without kept multipliers they are zero (`−C − α̃·0 = −C`: the same bits).
-            let lam_k = if keep { lam[k] } else { [0.0; L] };
-            let (w_a, w_b, rest_k) = (w[a], w[b], rest[k]);
-            let mut cp_prev = [0.0_f32; L];
-            let (mut ex, mut ey, mut ez, mut d) =
-                ([0.0_f32; L], [0.0_f32; L], [0.0_f32; L], [0.0_f32; L]);
-            for l in 0..L {
-                let (dx, dy, dz) = (xb[l] - xa[l], yb[l] - ya[l], zb[l] - za[l]);
-                let length = ((dx * dx) + (dy * dy) + (dz * dz)).sqrt();
-                let (wa, wb) = (w_a[l], w_b[l]);
-                let ws = wa + wb;
-                let active = length > 0.0 && ws > 0.0;
-                (ex[l], ey[l], ez[l]) = if active {
-                    (dx / length, dy / length, dz / length)
-                } else {
-                    (0.0, 0.0, 0.0)
-                };
-                let (vx, vy, vz) = (
-                    (xb[l] - pxb[l]) - (xa[l] - pxa[l]),
-                    (yb[l] - pyb[l]) - (ya[l] - pya[l]),
-                    (zb[l] - pzb[l]) - (za[l] - pza[l]),
-                );
-                let rate = (ex[l] * vx) + (ey[l] * vy) + (ez[l] * vz);
-                let constraint = length - rest_k[l];
-                let diag = if active { g1 * ws + alpha } else { 1.0 };
-                let rhs = if active {
-                    -constraint - alpha * lam_k[l] - gamma * rate
-                } else {
-                    0.0
-                };
-                // Coupling with spring k − 1 through particle k (zero for k = 0).
-                let cos = (n_prev[0][l] * ex[l]) + (n_prev[1][l] * ey[l]) + (n_prev[2][l] * ez[l]);
-                let e = -(g1 * wa) * cos;
-                let c = e / m_prev[l];
-                let m = diag - e * c;
-                d[l] = (rhs - e * dp_prev[l]) / m;
-                cp_prev[l] = c;
-                m_prev[l] = m;
-            }
-            dp_prev = d;
-            dp[k] = d;
-            (nx[k], ny[k], nz[k]) = (ex, ey, ez);
-            n_prev = [ex, ey, ez];
-            if k > 0 {
-                cp[k - 1] = cp_prev;
-            }
+        let diag = &mut diag.as_chunks_mut::<L>().0[..len];
+        // Spring k from spring k − 1's direction `n_prev`: writes its direction, its
+        // right-hand side into `dp[k]`, its diagonal into `diag[k]` and its coupling with
+        // spring k − 1 (through particle k) into `cp[k]`.
+        macro_rules! spring {
+            ($k:expr, $n_prev:expr) => {{
+                let k: usize = $k;
+                let n_prev: [[f32; L]; 3] = $n_prev;
+                let (a, b) = (k, k + 1);
+                // Local copies: the lane loop then reads and writes only locals and
+                // vectorises without alias checks.
+                let (xa, xb, ya, yb, za, zb) = (xs[a], xs[b], ys[a], ys[b], zs[a], zs[b]);
+                let (pxa, pxb, pya, pyb, pza, pzb) = (px[a], px[b], py[a], py[b], pz[a], pz[b]);
+                // Without kept multipliers they are zero (`−C − α̃·0 = −C`: the same bits).
+                let lam_k = if keep { lam[k] } else { [0.0; L] };
+                let (w_a, w_b, rest_k) = (w[a], w[b], rest[k]);
+                let (mut ex, mut ey, mut ez) = ([0.0_f32; L], [0.0_f32; L], [0.0_f32; L]);
+                let (mut e_k, mut rhs_k, mut diag_k) = ([0.0_f32; L], [0.0_f32; L], [0.0_f32; L]);
+                for l in 0..L {
+                    let (dx, dy, dz) = (xb[l] - xa[l], yb[l] - ya[l], zb[l] - za[l]);
+                    let length = ((dx * dx) + (dy * dy) + (dz * dz)).sqrt();
+                    let (wa, wb) = (w_a[l], w_b[l]);
+                    let ws = wa + wb;
+                    let active = length > 0.0 && ws > 0.0;
+                    (ex[l], ey[l], ez[l]) = if active {
+                        (dx / length, dy / length, dz / length)
+                    } else {
+                        (0.0, 0.0, 0.0)
+                    };
+                    let (vx, vy, vz) = (
+                        (xb[l] - pxb[l]) - (xa[l] - pxa[l]),
+                        (yb[l] - pyb[l]) - (ya[l] - pya[l]),
+                        (zb[l] - pzb[l]) - (za[l] - pza[l]),
+                    );
+                    let rate = (ex[l] * vx) + (ey[l] * vy) + (ez[l] * vz);
+                    let constraint = length - rest_k[l];
+                    diag_k[l] = if active { g1 * ws + alpha } else { 1.0 };
+                    rhs_k[l] = if active {
+                        -constraint - alpha * lam_k[l] - gamma * rate
+                    } else {
+                        0.0
+                    };
+                    // Coupling with spring k − 1 through particle k (zero for k = 0).
+                    let cos =
+                        (n_prev[0][l] * ex[l]) + (n_prev[1][l] * ey[l]) + (n_prev[2][l] * ez[l]);
+                    e_k[l] = -(g1 * wa) * cos;
+                }
+                (nx[k], ny[k], nz[k]) = (ex, ey, ez);
+                (cp[k], dp[k], diag[k]) = (e_k, rhs_k, diag_k);
+            }};
+        }
+        spring!(0, [[0.0; L]; 3]);
+        for k in 1..len - 1 {
+            spring!(k, [nx[k - 1], ny[k - 1], nz[k - 1]]);
+        }
+        // Step k of the elimination, from spring k − 1's eliminated diagonal `m_prev` and
+        // right-hand side `dp_prev`: the eliminated right-hand side replaces `dp[k]`, the
+        // coupling `c` goes into `cp[k − 1]` (k > 0) and the eliminated diagonal into `cp[k]`
+        // (read back as `m_prev` by step k + 1, then overwritten with its coupling).
+        macro_rules! eliminate {
+            ($k:expr, $m_prev:expr, $dp_prev:expr) => {{
+                let k: usize = $k;
+                let (m_prev, dp_prev): ([f32; L], [f32; L]) = ($m_prev, $dp_prev);
+                let (e_k, rhs_k, diag_k) = (cp[k], dp[k], diag[k]);
+                let (mut c_k, mut m_k, mut d) = ([0.0_f32; L], [0.0_f32; L], [0.0_f32; L]);
+                for l in 0..L {
+                    let e = e_k[l];
+                    let c = e / m_prev[l];
+                    let m = diag_k[l] - e * c;
+                    d[l] = (rhs_k[l] - e * dp_prev[l]) / m;
+                    c_k[l] = c;
+                    m_k[l] = m;
+                }
+                dp[k] = d;
+                if k > 0 {
+                    cp[k - 1] = c_k;
+                }
+                cp[k] = m_k;
+            }};
+        }
+        eliminate!(0, [1.0; L], [0.0; L]);
+        for k in 1..len - 1 {
+            eliminate!(k, cp[k - 1], dp[k - 1]);
         }
         cp[len - 2] = [0.0; L];
+        // Entry len − 1 (past the last spring): a zero change and direction, which the back
+        // substitution's first step reads as its successor's.
+        dp[len - 1] = [0.0; L];
+        (nx[len - 1], ny[len - 1], nz[len - 1]) = ([0.0; L], [0.0; L], [0.0; L]);
     }
     let [xs, ys, zs] = x.map(|a| &mut a.as_chunks_mut::<L>().0[..len]);
     let lam = &mut lambda.as_chunks_mut::<L>().0[..len];
     let [nx, ny, nz] = n.map(|a| &a.as_chunks::<L>().0[..len]);
-    let (cp, dp) = (&cp.as_chunks::<L>().0[..len], &dp.as_chunks::<L>().0[..len]);
-    let mut dl_next = [0.0_f32; L];
-    let mut n_next = [[0.0_f32; L]; 3];
+    let cp = &cp.as_chunks::<L>().0[..len];
+    // The multipliers' changes replace the right-hand sides in place (`dp[k]` becomes Δλ_k,
+    // read by step k − 1 as its successor's).
+    let dp = &mut dp.as_chunks_mut::<L>().0[..len];
     for k in (0..len - 1).rev() {
         let b = k + 1;
+        let dl_next = dp[b];
         // Whole-lane steps (simple loops, each one vector operation per lane group).
         let mut dl = [0.0_f32; L];
         for l in 0..L {
             dl[l] = dp[k][l] - cp[k][l] * dl_next[l];
         }
+        dp[k] = dl;
         let wb = w[b];
-        let n_k = [nx[k], ny[k], nz[k]];
         for (x, (n_k, n_next)) in [&mut xs[b], &mut ys[b], &mut zs[b]]
             .into_iter()
-            .zip(n_k.iter().zip(&n_next))
+            .zip([(&nx[k], &nx[b]), (&ny[k], &ny[b]), (&nz[k], &nz[b])])
         {
             // Through a local copy (no alias checks in the lane loop).
             let mut v = *x;
@@ -233,14 +278,13 @@ pub(crate) fn solve<const L: usize>(
                 lam[k][l] += dl[l];
             }
         }
-        dl_next = dl;
-        n_next = [nx[k], ny[k], nz[k]];
     }
+    let (dl_first, n_first) = (dp[0], [nx[0], ny[0], nz[0]]);
     for l in 0..L {
-        let s = w[0][l] * dl_next[l];
-        xs[0][l] -= s * n_next[0][l];
-        ys[0][l] -= s * n_next[1][l];
-        zs[0][l] -= s * n_next[2][l];
+        let s = w[0][l] * dl_first[l];
+        xs[0][l] -= s * n_first[0][l];
+        ys[0][l] -= s * n_first[1][l];
+        zs[0][l] -= s * n_first[2][l];
     }
 }
 
