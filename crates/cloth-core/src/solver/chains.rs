@@ -59,9 +59,14 @@ pub(crate) fn stride(len: usize) -> usize {
     len * LANES + PAD
 }
 
-/// Arrays per block: x, y, z, start x, y, z, inverse mass, rest length, multiplier, direction
+/// Arrays per block that persist between solves: x, y, z, start x, y, z, inverse mass, rest
+/// length, multiplier.
+pub(crate) const FIELDS: usize = 9;
+
+/// Scratch arrays of one solve, written before they are read (any content will do, so one
+/// set per thread serves every block it solves, and stays in that core's cache): direction
 /// x, y, z, the eliminated super-diagonal and right-hand side, the diagonal.
-pub(crate) const FIELDS: usize = 15;
+pub(crate) const SCRATCH: usize = 6;
 
 /// One block of `L` chains of `len` particles, step-major (entry `(k, lane)` at `k·L + lane`;
 /// the per-spring arrays use entries `k < len − 1`, spring `k` joining particles `k` and
@@ -88,8 +93,9 @@ pub(crate) struct Block<'a> {
 }
 
 impl<'a> Block<'a> {
-    /// Splits a block of [`FIELDS`] arrays of `size` entries each.
-    pub(crate) fn split(chunk: &'a mut [f32], size: usize) -> Self {
+    /// Splits a block of [`FIELDS`] arrays and a scratch of [`SCRATCH`] arrays, of `size`
+    /// entries each.
+    pub(crate) fn split(chunk: &'a mut [f32], scratch: &'a mut [f32], size: usize) -> Self {
         let mut it = chunk.chunks_exact_mut(size);
         let mut next = || it.next().expect("a block holds FIELDS arrays");
         let x = [next(), next(), next()];
@@ -97,6 +103,8 @@ impl<'a> Block<'a> {
         let w = &*next();
         let rest = &*next();
         let lambda = next();
+        let mut it = scratch.chunks_exact_mut(size);
+        let mut next = || it.next().expect("a scratch holds SCRATCH arrays");
         let n = [next(), next(), next()];
         let cp = next();
         let dp = next();
@@ -264,10 +272,11 @@ pub(crate) fn solve<const L: usize>(
         }
         dp[k] = dl;
         let wb = w[b];
-        for (x, (n_k, n_next)) in [&mut xs[b], &mut ys[b], &mut zs[b]]
-            .into_iter()
-            .zip([(&nx[k], &nx[b]), (&ny[k], &ny[b]), (&nz[k], &nz[b])])
-        {
+        for (x, (n_k, n_next)) in [&mut xs[b], &mut ys[b], &mut zs[b]].into_iter().zip([
+            (&nx[k], &nx[b]),
+            (&ny[k], &ny[b]),
+            (&nz[k], &nz[b]),
+        ]) {
             // Through a local copy (no alias checks in the lane loop).
             let mut v = *x;
             apply(&mut v, &wb, &dl, n_k, &dl_next, n_next);
@@ -307,6 +316,7 @@ pub(crate) enum Multipliers {
 /// multipliers adding up over the iterations (and over the rounds, `multipliers`).
 pub(crate) fn iterate(
     chunk: &mut [f32],
+    scratch: &mut [f32],
     size: usize,
     len: usize,
     (alpha, gamma, iterations): (f32, f32, u32),
@@ -318,7 +328,8 @@ pub(crate) fn iterate(
     }
     let keep = multipliers != Multipliers::Unused;
     for _ in 0..iterations {
-        crate::simd::xpbd_chains(kernel, Block::split(chunk, size), len, alpha, gamma, keep);
+        let block = Block::split(chunk, scratch, size);
+        crate::simd::xpbd_chains(kernel, block, len, alpha, gamma, keep);
     }
 }
 
@@ -506,10 +517,10 @@ pub(crate) fn solve_reference(
 ) {
     let (count, len) = shape(class, rows, cols);
     // Every field the solve reads is gathered below; only the length matters.
-    scratch.resize(FIELDS * len, 0.0);
+    scratch.resize((FIELDS + SCRATCH) * len, 0.0);
     for chain in 0..count {
         {
-            let (fields, _) = scratch.split_at_mut(9 * len);
+            let (fields, _) = scratch.split_at_mut(FIELDS * len);
             for k in 0..len {
                 let i = at(class, cols, chain, k);
                 let (x, x0) = (particles.position[i], start[i]);
@@ -532,7 +543,8 @@ pub(crate) fn solve_reference(
             }
         }
         for _ in 0..iterations {
-            solve::<1>(Block::split(scratch, len), len, alpha, gamma, true);
+            let (fields, work) = scratch.split_at_mut(FIELDS * len);
+            solve::<1>(Block::split(fields, work, len), len, alpha, gamma, true);
         }
         for k in 0..len {
             let i = at(class, cols, chain, k);

@@ -84,6 +84,41 @@ struct Level {
     horizontal: Vec<f32>,
 }
 
+/// One scratch vector per thread of a pool, each behind its own (uncontended) lock: what a
+/// thread leaves there is never read by the next user, so which thread takes which does not
+/// change a result. A clone starts empty.
+#[derive(Debug, Default)]
+struct ThreadScratch(Vec<std::sync::Mutex<Vec<f32>>>);
+
+impl Clone for ThreadScratch {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
+}
+
+impl ThreadScratch {
+    /// One vector of at least `len` floats per thread of the current pool (allocates only
+    /// when the pool or the length grew).
+    fn prepare(&mut self, len: usize) {
+        let threads = rayon::current_num_threads().max(1);
+        let short = |m: &std::sync::Mutex<Vec<f32>>| m.lock().map_or(true, |v| v.len() < len);
+        if self.0.len() != threads || self.0.iter().any(short) {
+            self.0 = (0..threads)
+                .map(|_| std::sync::Mutex::new(vec![0.0; len]))
+                .collect();
+        }
+    }
+
+    /// The calling thread's vector (the first one off a pool).
+    fn mine(&self) -> std::sync::MutexGuard<'_, Vec<f32>> {
+        let i = rayon::current_thread_index().unwrap_or(0) % self.0.len();
+        // A poisoned lock only means a panic elsewhere; the scratch is rewritten before use.
+        self.0[i]
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+}
+
 /// Scratch of the grid XPBD path.
 #[derive(Debug, Default, Clone)]
 pub(crate) struct XpbdGrid {
@@ -121,6 +156,8 @@ pub(crate) struct XpbdGrid {
     vel: [Placed; 3],
     /// Blocks of the chain solves (`XpbdSettings::chains`): warp (columns), weft (rows).
     chains: [Vec<f32>; 2],
+    /// The chain solves' scratch, one per thread of the pool.
+    chain_work: ThreadScratch,
     /// Whether each direction's blocks hold the current inverse masses and rest lengths.
     chain_statics: [bool; 2],
     /// Whether each direction's blocks hold this substep's start positions (reset by
@@ -503,6 +540,8 @@ impl XpbdGrid {
             scratch.resize(blocks * FIELDS * size, 0.0);
             self.chain_statics[class] = false;
         }
+        self.chain_work.prepare(chains::SCRATCH * size);
+        let work = &self.chain_work;
         let statics = !self.chain_statics[class];
         self.chain_statics[class] = true;
         let starts = statics || !self.chain_starts[class];
@@ -534,6 +573,7 @@ impl XpbdGrid {
                 );
                 chains::iterate(
                     chunk,
+                    &mut work.mine()[..chains::SCRATCH * size],
                     size,
                     len,
                     (alpha, gamma, iterations),
