@@ -50,7 +50,7 @@ const TILE: usize = 16;
 /// Floats between the starts of two arrays of a block beyond their `len · LANES` entries: one
 /// cache line. Without it a block of 256-particle chains holds its arrays exactly 16 KiB
 /// apart, every array's step `k` falls into the same set of the 8-way L1 cache, and the
-/// fourteen streams of a sweep evict one another (a block of 256-particle chains took twice
+/// streams of a sweep evict one another (a block of 256-particle chains took twice
 /// the cycles per step).
 const PAD: usize = 16;
 
