@@ -1185,28 +1185,69 @@ pub(crate) fn contacts_soa_row(
 /// plane; `true` for every other shape), as one reduction over the run.
 #[inline(always)]
 fn near_one(col: &crate::collide::Collider, [x, y, z]: [&[f32]; 3]) -> bool {
-    use crate::collide::Shape;
+    let Some(layer) = Layer::of(col) else {
+        return true;
+    };
     let n = x.len();
     let (y, z) = (&y[..n], &z[..n]);
     let mut near = false;
-    match col.shape {
-        Shape::Sphere { center, radius } => {
-            let reach = radius + col.thickness + CLEAR_MARGIN;
-            let reach_sq = reach * reach;
-            for k in 0..n {
-                let d = Vec3::new(x[k], y[k], z[k]) - center;
-                near |= d.length_squared() <= reach_sq;
-            }
-        }
-        Shape::Plane { point, normal } => {
-            let limit = col.thickness + CLEAR_MARGIN;
-            for k in 0..n {
-                near |= (Vec3::new(x[k], y[k], z[k]) - point).dot(normal) <= limit;
-            }
-        }
-        _ => near = true,
+    for k in 0..n {
+        near |= layer.near(x[k], y[k], z[k]);
     }
     near
+}
+
+/// A sphere's or a plane's contact layer widened by [`CLEAR_MARGIN`]: the negation of
+/// [`surely_clear`] as a per-particle test that loops over runs vectorise.
+#[derive(Clone, Copy)]
+enum Layer {
+    Sphere {
+        center: Vec3,
+        reach_sq: f32,
+    },
+    Plane {
+        point: Vec3,
+        normal: Vec3,
+        limit: f32,
+    },
+}
+
+impl Layer {
+    /// `None` for shapes other than spheres and planes.
+    #[inline(always)]
+    fn of(col: &crate::collide::Collider) -> Option<Self> {
+        use crate::collide::Shape;
+        match col.shape {
+            Shape::Sphere { center, radius } => {
+                let reach = radius + col.thickness + CLEAR_MARGIN;
+                Some(Self::Sphere {
+                    center,
+                    reach_sq: reach * reach,
+                })
+            }
+            Shape::Plane { point, normal } => Some(Self::Plane {
+                point,
+                normal,
+                limit: col.thickness + CLEAR_MARGIN,
+            }),
+            _ => None,
+        }
+    }
+
+    /// Whether the particle at `(x, y, z)` is within the widened layer.
+    #[inline(always)]
+    fn near(self, x: f32, y: f32, z: f32) -> bool {
+        match self {
+            Self::Sphere { center, reach_sq } => {
+                (Vec3::new(x, y, z) - center).length_squared() <= reach_sq
+            }
+            Self::Plane {
+                point,
+                normal,
+                limit,
+            } => (Vec3::new(x, y, z) - point).dot(normal) <= limit,
+        }
+    }
 }
 
 /// [`super::xpbd::contact`] with collider `col` (a sphere or a plane that does not turn) for
@@ -1330,27 +1371,16 @@ const NEAR_SUB: usize = 16;
 /// does not move it, so the test holds for the next), so only `near` particles need it.
 #[inline(always)]
 fn near_any(colliders: &[crate::collide::Collider], [x, y, z]: [&[f32]; 3], near: &mut [bool]) {
-    use crate::collide::Shape;
     let n = near.len();
     let (x, y, z) = (&x[..n], &y[..n], &z[..n]);
     near.fill(false);
     for col in colliders {
-        match col.shape {
-            Shape::Sphere { center, radius } => {
-                let reach = radius + col.thickness + CLEAR_MARGIN;
-                let reach_sq = reach * reach;
-                for k in 0..n {
-                    let d = Vec3::new(x[k], y[k], z[k]) - center;
-                    near[k] |= d.length_squared() <= reach_sq;
-                }
-            }
-            Shape::Plane { point, normal } => {
-                let limit = col.thickness + CLEAR_MARGIN;
-                for k in 0..n {
-                    near[k] |= (Vec3::new(x[k], y[k], z[k]) - point).dot(normal) <= limit;
-                }
-            }
-            _ => near.fill(true),
+        let Some(layer) = Layer::of(col) else {
+            near.fill(true);
+            continue;
+        };
+        for k in 0..n {
+            near[k] |= layer.near(x[k], y[k], z[k]);
         }
     }
 }
