@@ -515,7 +515,9 @@ impl XpbdGrid {
     /// The chain solves of the warp (`class` 0, one chain per column) or of the weft
     /// (`class` 1, one per row), see [`super::chains`]: blocks of [`super::chains::LANES`] chains
     /// gathered, solved and scattered back, blocks in parallel (each block's chains are
-    /// independent of the others', so any thread count gives the same bits).
+    /// independent of the others', so any thread count gives the same bits). A weft block is
+    /// gathered, solved and written back in one task (its rows are its own); the warp's
+    /// columns are written back row by row in a second pass.
     fn chains(
         &mut self,
         class: usize,
@@ -546,6 +548,64 @@ impl XpbdGrid {
         self.chain_statics[class] = true;
         let starts = statics || !self.chain_starts[class];
         self.chain_starts[class] = true;
+        let solve = |chunk: &mut [f32]| {
+            chains::iterate(
+                chunk,
+                &mut work.mine()[..chains::SCRATCH * size],
+                size,
+                len,
+                (alpha, gamma, iterations),
+                multipliers,
+                kernel,
+            );
+        };
+        if class == 1 {
+            // The weft: each block gathers from, and writes back into, its own LANES rows in
+            // the same task (the write-back reads the block while it is still in this core's
+            // cache; rows of different blocks are disjoint).
+            let (prev, w, rest) = (&self.prev, &self.inv_mass, &self.rest[class]);
+            let keep = self.keep;
+            let [x, y, z] = &mut self.pos;
+            let lambda = &mut self.lambda[class];
+            let rows_per = LANES * cols;
+            scratch
+                .par_chunks_mut(FIELDS * size)
+                .zip(x.par_chunks_mut(rows_per))
+                .zip(y.par_chunks_mut(rows_per))
+                .zip(z.par_chunks_mut(rows_per))
+                .zip(lambda.par_chunks_mut(rows_per))
+                .enumerate()
+                .for_each(|(b, ((((chunk, x), y), z), lam))| {
+                    let first = b * LANES;
+                    let at = first * cols;
+                    if let Some(warp) = warp {
+                        chains::handoff::<LANES>(chunk, warp, b, (rows, cols), kernel);
+                    }
+                    // The block's rows, as chain 0 onwards.
+                    chains::gather::<LANES>(
+                        chunk,
+                        len,
+                        (class, cols),
+                        (0, LANES.min(count - first)),
+                        warp.is_none().then_some([&*x, &*y, &*z]),
+                        starts.then_some([&prev[0][at..], &prev[1][at..], &prev[2][at..]]),
+                        &w[at..],
+                        &rest[at..],
+                        keep.then_some(&*lam),
+                        statics,
+                        kernel,
+                    );
+                    solve(chunk);
+                    // Positions (fields 0, 1, 2) and, when kept, multipliers (field 8) back.
+                    for (f, dst) in [x, y, z].into_iter().enumerate() {
+                        chains::scatter_rows::<LANES>(&chunk[f * size..], len, dst, cols, kernel);
+                    }
+                    if keep {
+                        chains::scatter_rows::<LANES>(&chunk[8 * size..], len, lam, cols, kernel);
+                    }
+                });
+            return;
+        }
         let [x, y, z] = &self.pos;
         let (prev, w, rest) = (&self.prev, &self.inv_mass, &self.rest[class]);
         let keep = self.keep;
@@ -571,56 +631,41 @@ impl XpbdGrid {
                     statics,
                     kernel,
                 );
-                chains::iterate(
-                    chunk,
-                    &mut work.mine()[..chains::SCRATCH * size],
-                    size,
-                    len,
-                    (alpha, gamma, iterations),
-                    multipliers,
-                    kernel,
-                );
+                solve(chunk);
             });
         let scratch = &self.chains[class];
         let [x, y, z] = &mut self.pos;
         let lambda = &mut self.lambda[class];
-        // Fields 0, 1, 2 (positions) and 8 (multipliers) back into the rows: by row for the
-        // warp, by block of rows for the weft. The warp's positions not when the weft takes
-        // them from the blocks (`handoff`), the multipliers only when kept.
-        let fields: &[usize] = match (class == 0 && handoff, keep) {
+        // The warp's fields 0, 1, 2 (positions) and 8 (multipliers) back into the rows, row by
+        // row: the positions not when the weft takes them from the blocks (`handoff`), the
+        // multipliers only when kept.
+        let fields: &[usize] = match (handoff, keep) {
             (false, false) => &[0, 1, 2],
             (false, true) => &[0, 1, 2, 3],
             (true, true) => &[3],
             (true, false) => return,
         };
-        let rows_per = if class == 0 { 1 } else { LANES };
-        x.par_chunks_mut(rows_per * cols)
-            .zip(y.par_chunks_mut(rows_per * cols))
-            .zip(z.par_chunks_mut(rows_per * cols))
-            .zip(lambda.par_chunks_mut(rows_per * cols))
+        x.par_chunks_mut(cols)
+            .zip(y.par_chunks_mut(cols))
+            .zip(z.par_chunks_mut(cols))
+            .zip(lambda.par_chunks_mut(cols))
             .enumerate()
             .for_each(|(i, (((x, y), z), lam))| {
                 let mut dst = [x, y, z, lam];
                 for &f in fields {
                     let dst = &mut dst[f];
                     let field = if f == 3 { 8 } else { f };
-                    if class == 0 {
-                        for (b, block) in scratch.chunks_exact(FIELDS * size).enumerate() {
-                            let first = b * LANES;
-                            let lanes = LANES.min(count - first);
-                            let src = &block[field * size + i * LANES..];
-                            if lanes == LANES {
-                                // Of known length: inlined, no `memcpy` call per step.
-                                let dst = dst[first..].first_chunk_mut::<LANES>().expect("lanes");
-                                *dst = *src.first_chunk::<LANES>().expect("lanes");
-                            } else {
-                                dst[first..first + lanes].copy_from_slice(&src[..lanes]);
-                            }
+                    for (b, block) in scratch.chunks_exact(FIELDS * size).enumerate() {
+                        let first = b * LANES;
+                        let lanes = LANES.min(count - first);
+                        let src = &block[field * size + i * LANES..];
+                        if lanes == LANES {
+                            // Of known length: inlined, no `memcpy` call per step.
+                            let dst = dst[first..].first_chunk_mut::<LANES>().expect("lanes");
+                            *dst = *src.first_chunk::<LANES>().expect("lanes");
+                        } else {
+                            dst[first..first + lanes].copy_from_slice(&src[..lanes]);
                         }
-                    } else {
-                        let block = &scratch[i * FIELDS * size..][..FIELDS * size];
-                        let src = &block[field * size..][..size];
-                        chains::scatter_rows::<LANES>(src, len, dst, cols, kernel);
                     }
                 }
             });
