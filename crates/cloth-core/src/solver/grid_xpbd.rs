@@ -470,10 +470,15 @@ impl XpbdGrid {
                 let compliant = |m: Option<Mode>| matches!(m, Some(Mode::Compliant { .. }));
                 let handoff = compliant(modes[0]) && compliant(modes[1]);
                 let iterations = settings.chain_iterations;
+                // The contact pass before a later round runs in the weft's tasks of the round
+                // before, on each block's rows right after their write-back (the same
+                // per-particle operations on the same values: the same bits).
+                let fused = compliant(modes[1]) && !ctx.colliders.is_empty();
                 for round in 0..rounds {
-                    if rounds > 1 {
+                    if rounds > 1 && !(fused && round > 0) {
                         self.contacts(ctx.colliders, h);
                     }
+                    let after = (fused && round + 1 < rounds).then_some((ctx.colliders, h));
                     let multipliers = if self.keep || round > 0 {
                         Multipliers::Kept
                     } else if iterations > 1 || rounds > 1 {
@@ -485,7 +490,9 @@ impl XpbdGrid {
                         let Some(Mode::Compliant { alpha, gamma }) = mode else {
                             continue;
                         };
-                        self.chains(class, (alpha, gamma, iterations), multipliers, handoff);
+                        let after = if class == 1 { after } else { None };
+                        let solve = (alpha, gamma, iterations);
+                        self.chains(class, solve, multipliers, handoff, after);
                     }
                 }
             }
@@ -516,14 +523,16 @@ impl XpbdGrid {
     /// (`class` 1, one per row), see [`super::chains`]: blocks of [`super::chains::LANES`] chains
     /// gathered, solved and scattered back, blocks in parallel (each block's chains are
     /// independent of the others', so any thread count gives the same bits). A weft block is
-    /// gathered, solved and written back in one task (its rows are its own); the warp's
-    /// columns are written back row by row in a second pass.
+    /// gathered, solved and written back in one task (its rows are its own), followed there by
+    /// the contacts of its rows with `contacts` (the colliders and the substep) when given; the
+    /// warp's columns are written back row by row in a second pass.
     fn chains(
         &mut self,
         class: usize,
         (alpha, gamma, iterations): (f32, f32, u32),
         multipliers: Multipliers,
         handoff: bool,
+        contacts: Option<(&[crate::collide::Collider], f32)>,
     ) {
         use super::chains::{self, FIELDS, LANES};
         let (rows, cols) = (self.rows, self.cols);
@@ -560,6 +569,7 @@ impl XpbdGrid {
             );
         };
         if class == 1 {
+            let contacts = contacts.map(|(colliders, h)| RowContacts::new(colliders, h));
             // The weft: each block gathers from, and writes back into, its own LANES rows in
             // the same task (the write-back reads the block while it is still in this core's
             // cache; rows of different blocks are disjoint).
@@ -597,11 +607,24 @@ impl XpbdGrid {
                     );
                     solve(chunk);
                     // Positions (fields 0, 1, 2) and, when kept, multipliers (field 8) back.
-                    for (f, dst) in [x, y, z].into_iter().enumerate() {
+                    for (f, dst) in [&mut *x, &mut *y, &mut *z].into_iter().enumerate() {
                         chains::scatter_rows::<LANES>(&chunk[f * size..], len, dst, cols, kernel);
                     }
                     if keep {
                         chains::scatter_rows::<LANES>(&chunk[8 * size..], len, lam, cols, kernel);
+                    }
+                    // The next round's contacts on these rows (as `Self::contacts` does them).
+                    if let Some(contacts) = &contacts {
+                        let rows = x.chunks_mut(cols).zip(y.chunks_mut(cols));
+                        for (r, ((x, y), z)) in rows.zip(z.chunks_mut(cols)).enumerate() {
+                            let all = at + r * cols..at + (r + 1) * cols;
+                            let p0 = [
+                                &prev[0][all.clone()],
+                                &prev[1][all.clone()],
+                                &prev[2][all.clone()],
+                            ];
+                            contacts.row([x, y, z], p0, &w[all]);
+                        }
                     }
                 });
             return;
