@@ -88,7 +88,11 @@ struct Level {
 /// thread leaves there is never read by the next user, so which thread takes which does not
 /// change a result. A clone starts empty.
 #[derive(Debug, Default)]
-struct ThreadScratch(Vec<std::sync::Mutex<Vec<f32>>>);
+struct ThreadScratch {
+    /// One vector per thread, each `len` floats long.
+    each: Vec<std::sync::Mutex<Vec<f32>>>,
+    len: usize,
+}
 
 impl Clone for ThreadScratch {
     fn clone(&self) -> Self {
@@ -101,19 +105,19 @@ impl ThreadScratch {
     /// when the pool or the length grew).
     fn prepare(&mut self, len: usize) {
         let threads = rayon::current_num_threads().max(1);
-        let short = |m: &std::sync::Mutex<Vec<f32>>| m.lock().map_or(true, |v| v.len() < len);
-        if self.0.len() != threads || self.0.iter().any(short) {
-            self.0 = (0..threads)
-                .map(|_| std::sync::Mutex::new(vec![0.0; len]))
+        if self.each.len() != threads || self.len < len {
+            self.len = self.len.max(len);
+            self.each = (0..threads)
+                .map(|_| std::sync::Mutex::new(vec![0.0; self.len]))
                 .collect();
         }
     }
 
     /// The calling thread's vector (the first one off a pool).
     fn mine(&self) -> std::sync::MutexGuard<'_, Vec<f32>> {
-        let i = rayon::current_thread_index().unwrap_or(0) % self.0.len();
+        let i = rayon::current_thread_index().unwrap_or(0) % self.each.len();
         // A poisoned lock only means a panic elsewhere; the scratch is rewritten before use.
-        self.0[i]
+        self.each[i]
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
@@ -541,6 +545,7 @@ impl XpbdGrid {
         let blocks = count.div_ceil(LANES);
         let kernel = crate::simd::kernel();
         let [warp, weft] = &mut self.chains;
+        // With both directions solved the weft takes its positions from the warp's blocks.
         let (scratch, warp) = if class == 0 {
             (warp, None)
         } else {
@@ -615,16 +620,8 @@ impl XpbdGrid {
                     }
                     // The next round's contacts on these rows (as `Self::contacts` does them).
                     if let Some(contacts) = &contacts {
-                        let rows = x.chunks_mut(cols).zip(y.chunks_mut(cols));
-                        for (r, ((x, y), z)) in rows.zip(z.chunks_mut(cols)).enumerate() {
-                            let all = at + r * cols..at + (r + 1) * cols;
-                            let p0 = [
-                                &prev[0][all.clone()],
-                                &prev[1][all.clone()],
-                                &prev[2][all.clone()],
-                            ];
-                            contacts.row([x, y, z], p0, &w[all]);
-                        }
+                        let prev = [&prev[0][..], &prev[1][..], &prev[2][..]];
+                        contacts.rows(first, cols, [x, y, z], prev, w);
                     }
                 });
             return;
@@ -638,15 +635,12 @@ impl XpbdGrid {
             .enumerate()
             .for_each(|(b, chunk)| {
                 let first = b * LANES;
-                if let Some(warp) = warp {
-                    chains::handoff::<LANES>(chunk, warp, b, (rows, cols), kernel);
-                }
                 chains::gather::<LANES>(
                     chunk,
                     len,
                     (class, cols),
                     (first, LANES.min(count - first)),
-                    warp.is_none().then_some([x, y, z]),
+                    Some([x, y, z]),
                     starts.then_some([&prev[0], &prev[1], &prev[2]]),
                     w,
                     rest,
@@ -856,20 +850,15 @@ impl XpbdGrid {
         let cols = self.cols;
         let contacts = RowContacts::new(colliders, h);
         let (prev, w) = (&self.prev, &self.inv_mass);
+        let prev = [&prev[0][..], &prev[1][..], &prev[2][..]];
         let [x, y, z] = &mut self.pos;
         x.par_chunks_mut(cols)
             .zip(y.par_chunks_mut(cols))
             .zip(z.par_chunks_mut(cols))
             .enumerate()
             .for_each(|(r, ((x, y), z))| {
-                let all = r * cols..(r + 1) * cols;
-                let p0 = [
-                    &prev[0][all.clone()],
-                    &prev[1][all.clone()],
-                    &prev[2][all.clone()],
-                ];
                 // Only the last sweep's count is reported (by `finish`).
-                contacts.row([x, y, z], p0, &w[all]);
+                contacts.rows(r, cols, [x, y, z], prev, w);
             });
     }
 
@@ -1043,6 +1032,30 @@ impl<'a> RowContacts<'a> {
             soa: soa_colliders(colliders),
             kernel: crate::simd::kernel(),
         }
+    }
+
+    /// [`Self::row`] for each of the grid's rows from `first` held in `x, y, z` (`cols`
+    /// wide), with the grid's start positions `prev` and inverse masses `w`. Returns the
+    /// contact count.
+    fn rows(
+        &self,
+        first: usize,
+        cols: usize,
+        [x, y, z]: [&mut [f32]; 3],
+        prev: [&[f32]; 3],
+        w: &[f32],
+    ) -> u32 {
+        let rows = x
+            .chunks_mut(cols)
+            .zip(y.chunks_mut(cols))
+            .zip(z.chunks_mut(cols));
+        let mut count = 0;
+        for (r, ((x, y), z)) in rows.enumerate() {
+            let all = (first + r) * cols..(first + r + 1) * cols;
+            let p0 = prev.map(|p| &p[all.clone()]);
+            count += self.row([x, y, z], p0, &w[all]);
+        }
+        count
     }
 
     /// The contacts of one row: positions `x, y, z` (updated), start positions `p0`, inverse
