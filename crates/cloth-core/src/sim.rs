@@ -20,6 +20,8 @@ use crate::topology::Topology;
 ///    [`set_pin_target`](Self::set_pin_target)) by the end of the step, or zero;
 /// 3. **substeps**, each: move the colliders along their prescribed motion, then the
 ///    integrator's substep (forces → integrate → contacts, for the explicit integrators);
+///    on a rayon pool of several threads the other threads poll for work through all the
+///    substeps instead of falling asleep between their parallel passes;
 /// 4. **pins**: snap moved pins exactly onto their targets and stop them;
 /// 5. **diagnostics and instability check**: energies, strains, penetration, contacts; a
 ///    non-finite value, a runaway speed or a spring past the stretch limit restores the
@@ -529,25 +531,31 @@ impl Simulation {
         self.solver.begin_step();
         let h = self.config.substep_dt();
         let mut contacts = ContactStats::default();
-        for s in 0..self.config.substeps {
-            let t = self.time + f64::from(h) * f64::from(s);
-            for c in &mut self.colliders {
-                c.advance(h);
+        let (time, config, topology, rest) =
+            (self.time, &self.config, &self.topology, &self.rest_position);
+        let (colliders, solver, particles) =
+            (&mut self.colliders, &mut self.solver, &mut self.particles);
+        crate::solver::with_pool_awake(|| {
+            for s in 0..config.substeps {
+                let t = time + f64::from(h) * f64::from(s);
+                for c in colliders.iter_mut() {
+                    c.advance(h);
+                }
+                solver.substep(
+                    config.integrator,
+                    SubstepCtx {
+                        particles,
+                        topology,
+                        config,
+                        colliders,
+                        wind: config.air.wind_at(t),
+                        h,
+                        contacts: &mut contacts,
+                        rest,
+                    },
+                );
             }
-            self.solver.substep(
-                self.config.integrator,
-                SubstepCtx {
-                    particles: &mut self.particles,
-                    topology: &self.topology,
-                    config: &self.config,
-                    colliders: &self.colliders,
-                    wind: self.config.air.wind_at(t),
-                    h,
-                    contacts: &mut contacts,
-                    rest: &self.rest_position,
-                },
-            );
-        }
+        });
 
         self.solver.end_step(&mut self.particles);
 

@@ -109,6 +109,17 @@ pub fn set_kernel(kernel: Option<Kernel>) -> Result<()> {
     Ok(())
 }
 
+/// This thread's choice of kernel (`None`: the default).
+pub(crate) fn chosen() -> Option<Kernel> {
+    CHOSEN.with(Cell::get)
+}
+
+/// Makes `kernel` this thread's choice, returning the previous one (for a choice already
+/// checked on the thread that made it: a step moved onto a pool thread keeps its caller's).
+pub(crate) fn choose(kernel: Option<Kernel>) -> Option<Kernel> {
+    CHOSEN.with(|c| c.replace(kernel))
+}
+
 /// The kernel the steps on this thread use.
 #[must_use]
 pub fn kernel() -> Kernel {

@@ -208,3 +208,135 @@ impl Solver {
         &self.force
     }
 }
+
+/// Runs `f` (a step's substeps) on the current rayon pool with its other threads kept awake:
+/// each polls for work (`rayon::yield_now`, and the operating system's yield when there is
+/// none) until `f` returns, instead of falling asleep whenever it runs out of work.
+///
+/// A substep is many short parallel passes (XPBD's grid path: about 25 per substep, each a
+/// few hundred microseconds at 256²). Between two passes rayon lets an idle thread spin for
+/// a few dozen yields and then sleep, and on a virtual machine waking it takes tens of
+/// microseconds, often more than the imbalance it was waiting out: the 256² drape (3 substeps
+/// × 5 rounds × 2 iterations, 2 threads) spent ≈ 20 % of its wall time with a thread off the
+/// processor or in the scheduler, and runs ≈ 10 % faster with the threads kept awake
+/// (interleaved medians, `docs/performance.md`). The pollers yield to the operating system
+/// whenever they find nothing, so a machine with more threads than cores still runs the
+/// work. Which thread runs which piece of work never changes the results (every parallel pass
+/// writes disjoint data in a fixed order).
+///
+/// Allocation-free (nested `rayon::join`s, one per other thread; the pollers leave when a
+/// flag is set, also when `f` panics). With one thread, `f` runs directly.
+pub(crate) fn with_pool_awake<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let threads = rayon::current_num_threads();
+    if threads < 2 {
+        return f();
+    }
+    let done = AtomicBool::new(false);
+    // Sets the flag when dropped: after `f` returns or while it unwinds (a panic in `f` would
+    // otherwise leave the pollers running, and `join` waits for them).
+    struct Done<'a>(&'a AtomicBool);
+    impl Drop for Done<'_> {
+        fn drop(&mut self) {
+            self.0.store(true, Ordering::Release);
+        }
+    }
+    // Nested joins: `f` on this thread, a poller offered to the others at each level.
+    fn nest<R: Send>(
+        pollers: usize,
+        owner: Option<usize>,
+        done: &AtomicBool,
+        f: impl FnOnce() -> R + Send,
+    ) -> R {
+        if pollers == 0 {
+            let _done = Done(done);
+            return f();
+        }
+        let (r, ()) = rayon::join(
+            || nest(pollers - 1, owner, done, f),
+            || {
+                // Not on the thread running `f` (it takes back an unstolen poller after `f`).
+                if rayon::current_thread_index() == owner {
+                    return;
+                }
+                while !done.load(Ordering::Acquire) {
+                    if rayon::yield_now() != Some(rayon::Yield::Executed) {
+                        std::thread::yield_now();
+                    }
+                }
+            },
+        );
+        r
+    }
+    match rayon::current_thread_index() {
+        Some(owner) => nest(threads - 1, Some(owner), &done, f),
+        // From outside the pool: `join` moves the whole call into it (the owner is then the
+        // pool thread that runs `f`), with the caller's choice of kernel (thread-local,
+        // `simd::set_kernel`), restored on that thread afterwards.
+        None => {
+            struct Restore(Option<crate::simd::Kernel>);
+            impl Drop for Restore {
+                fn drop(&mut self) {
+                    crate::simd::choose(self.0);
+                }
+            }
+            let chosen = crate::simd::chosen();
+            rayon::join(
+                || {
+                    let _restore = Restore(crate::simd::choose(chosen));
+                    nest(threads - 1, rayon::current_thread_index(), &done, f)
+                },
+                || (),
+            )
+            .0
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::with_pool_awake;
+
+    fn pool(threads: usize) -> rayon::ThreadPool {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("a thread pool")
+    }
+
+    /// `f`'s result comes back, and parallel work inside `f` runs, on 1, 2 and 3 threads,
+    /// from a pool thread and from outside any pool.
+    #[test]
+    fn with_pool_awake_runs_f_and_its_parallel_work() {
+        use rayon::prelude::*;
+        let sum = || (0..10_000_u64).into_par_iter().map(|i| i * i).sum::<u64>();
+        let expected: u64 = (0..10_000_u64).map(|i| i * i).sum();
+        for threads in 1..=3 {
+            assert_eq!(pool(threads).install(|| with_pool_awake(sum)), expected);
+        }
+        assert_eq!(with_pool_awake(sum), expected);
+    }
+
+    /// A panic in `f` reaches the caller (the pollers stop; no hang), and the pool still
+    /// works afterwards.
+    #[test]
+    fn with_pool_awake_passes_a_panic_on() {
+        let pool = pool(2);
+        let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            pool.install(|| with_pool_awake(|| panic!("inside the step")))
+        }));
+        assert!(caught.is_err());
+        assert_eq!(pool.install(|| with_pool_awake(|| 7)), 7);
+    }
+
+    /// The caller's kernel choice (thread-local) holds for `f` when the call moves onto a
+    /// pool thread.
+    #[test]
+    fn with_pool_awake_keeps_the_callers_kernel() {
+        use crate::simd::{self, Kernel};
+        simd::set_kernel(Some(Kernel::Reference)).expect("the reference kernel runs anywhere");
+        assert_eq!(with_pool_awake(simd::kernel), Kernel::Reference);
+        simd::set_kernel(None).expect("the default");
+        assert_eq!(with_pool_awake(simd::kernel), Kernel::best());
+    }
+}
