@@ -38,8 +38,9 @@
 //!
 //! The chains of one direction are independent. The grid path solves them in blocks of
 //! [`LANES`] chains laid out step-major (entry `(k, lane)` at `k·LANES + lane`), so every
-//! operation of the sweep runs across the lanes as one vector; the reference path solves one
-//! chain at a time with the same function at one lane, hence the same bits.
+//! operation of the sweep runs across the lanes as one vector, two blocks at a time (their
+//! recurrences interleaved, [`solve`]); the reference path solves one chain at a time with the
+//! same function at one lane, hence the same bits.
 
 /// Chains per block on the grid path: the lanes of the vectorised sweeps.
 pub(crate) const LANES: usize = 16;
@@ -123,49 +124,44 @@ impl<'a> Block<'a> {
     }
 }
 
-/// Solves the `L` chains of `len ≥ 2` particles of a block (see the module docs): one forward
-/// elimination (directions, constraint values, the tridiagonal matrix and its elimination,
-/// from the current positions), then one back substitution applying every multiplier's change
-/// to the positions (and, with `keep`, adding it to the multipliers, which are read as zero
-/// otherwise). Plain IEEE `f32` (no fused multiply-add), the same for every lane count.
+/// Solves the `L` chains of `len ≥ 2` particles of each of `N` blocks (see the module docs):
+/// one forward elimination (directions, constraint values, the tridiagonal matrix and its
+/// elimination, from the current positions), then one back substitution applying every
+/// multiplier's change to the positions (and, with `keep`, adding it to the multipliers, which
+/// are read as zero otherwise). Plain IEEE `f32` (no fused multiply-add), the same for every
+/// lane count and every `N`: each lane's operations are the same, whatever else is solved
+/// beside it.
+///
+/// The elimination and the back substitution are recurrences along the chain (each step waits
+/// for the step before it: a division and a few products in the elimination, ≈ 30 cycles per
+/// step with AVX-512), so their steps of the `N` blocks are interleaved: with two blocks the
+/// processor runs two independent recurrences side by side.
 #[inline(always)]
-pub(crate) fn solve<const L: usize>(
-    block: Block<'_>,
+pub(crate) fn solve<const L: usize, const N: usize>(
+    mut blocks: [Block<'_>; N],
     len: usize,
     alpha: f32,
     gamma: f32,
     keep: bool,
 ) {
-    let Block {
-        x,
-        prev,
-        w,
-        rest,
-        lambda,
-        mut n,
-        cp,
-        dp,
-        diag,
-    } = block;
     debug_assert!(len >= 2);
     let g1 = 1.0 + gamma;
-    let w = &w.as_chunks::<L>().0[..len];
-    let rest = &rest.as_chunks::<L>().0[..len];
-    let [px, py, pz] = prev.map(|a| &a.as_chunks::<L>().0[..len]);
-    // The forward elimination in two loops: first everything that does not depend on the
-    // elimination's recurrence (directions, constraint values, right-hand sides, diagonals and
-    // couplings of every spring: independent steps that the processor overlaps), then the
-    // recurrence itself (a short loop of two divisions per step). The recurrences go through
-    // the block's arrays (each step reads what the step before it wrote, from L1), not through
-    // arrays carried in the loop, which the compiler split into scalars or spilled. The same
-    // operations per lane as one fused loop, so the same bits.
-    {
-        let [xs, ys, zs] = x.each_ref().map(|a| &a.as_chunks::<L>().0[..len]);
-        let lam = &lambda.as_chunks::<L>().0[..len];
-        let [nx, ny, nz] = n.each_mut().map(|a| &mut a.as_chunks_mut::<L>().0[..len]);
-        let cp = &mut cp.as_chunks_mut::<L>().0[..len];
-        let dp = &mut dp.as_chunks_mut::<L>().0[..len];
-        let diag = &mut diag.as_chunks_mut::<L>().0[..len];
+    // 1. Per block, everything that does not depend on the elimination's recurrence
+    // (directions, constraint values, right-hand sides, diagonals and couplings of every
+    // spring: independent steps that the processor overlaps).
+    for block in &mut blocks {
+        let w = &block.w.as_chunks::<L>().0[..len];
+        let rest = &block.rest.as_chunks::<L>().0[..len];
+        let [px, py, pz] = block.prev.map(|a| &a.as_chunks::<L>().0[..len]);
+        let [xs, ys, zs] = block.x.each_ref().map(|a| &a.as_chunks::<L>().0[..len]);
+        let lam = &block.lambda.as_chunks::<L>().0[..len];
+        let [nx, ny, nz] = block
+            .n
+            .each_mut()
+            .map(|a| &mut a.as_chunks_mut::<L>().0[..len]);
+        let cp = &mut block.cp.as_chunks_mut::<L>().0[..len];
+        let dp = &mut block.dp.as_chunks_mut::<L>().0[..len];
+        let diag = &mut block.diag.as_chunks_mut::<L>().0[..len];
         // Spring k from spring k − 1's direction `n_prev`: writes its direction, its
         // right-hand side into `dp[k]`, its diagonal into `diag[k]` and its coupling with
         // spring k − 1 (through particle k) into `cp[k]`.
@@ -220,14 +216,31 @@ pub(crate) fn solve<const L: usize>(
         for k in 1..len - 1 {
             spring!(k, [nx[k - 1], ny[k - 1], nz[k - 1]]);
         }
-        // Step k of the elimination, from spring k − 1's eliminated diagonal `m_prev` and
-        // right-hand side `dp_prev`: the eliminated right-hand side replaces `dp[k]`, the
-        // coupling `c` goes into `cp[k − 1]` (k > 0) and the eliminated diagonal into `cp[k]`
-        // (read back as `m_prev` by step k + 1, then overwritten with its coupling).
+        // Entry len − 1 (past the last spring): a zero change and direction, which the back
+        // substitution's first step reads as its successor's.
+        dp[len - 1] = [0.0; L];
+        (nx[len - 1], ny[len - 1], nz[len - 1]) = ([0.0; L], [0.0; L], [0.0; L]);
+    }
+    // 2. The elimination, the blocks' steps interleaved. Step k, from spring k − 1's
+    // eliminated diagonal `m_prev` and right-hand side `dp_prev`: the eliminated right-hand
+    // side replaces `dp[k]`, the coupling `c` goes into `cp[k − 1]` (k > 0) and the eliminated
+    // diagonal into `cp[k]` (read back as `m_prev` by step k + 1, then overwritten with its
+    // coupling). The recurrences go through the block's arrays (each step reads what the step
+    // before it wrote, from L1), not through arrays carried in the loop, which the compiler
+    // split into scalars or spilled.
+    {
+        let mut views = blocks.each_mut().map(|b| {
+            (
+                &mut b.cp.as_chunks_mut::<L>().0[..len],
+                &mut b.dp.as_chunks_mut::<L>().0[..len],
+                &b.diag.as_chunks::<L>().0[..len],
+            )
+        });
         macro_rules! eliminate {
-            ($k:expr, $m_prev:expr, $dp_prev:expr) => {{
-                let k: usize = $k;
+            ($i:expr, $k:expr, $m_prev:expr, $dp_prev:expr) => {{
+                let (i, k): (usize, usize) = ($i, $k);
                 let (m_prev, dp_prev): ([f32; L], [f32; L]) = ($m_prev, $dp_prev);
+                let (cp, dp, diag) = &mut views[i];
                 let (e_k, rhs_k, diag_k) = (cp[k], dp[k], diag[k]);
                 let (mut c_k, mut m_k, mut d) = ([0.0_f32; L], [0.0_f32; L], [0.0_f32; L]);
                 for l in 0..L {
@@ -245,55 +258,76 @@ pub(crate) fn solve<const L: usize>(
                 cp[k] = m_k;
             }};
         }
-        eliminate!(0, [1.0; L], [0.0; L]);
+        for i in 0..N {
+            eliminate!(i, 0, [1.0; L], [0.0; L]);
+        }
         for k in 1..len - 1 {
-            eliminate!(k, cp[k - 1], dp[k - 1]);
+            for i in 0..N {
+                eliminate!(i, k, views[i].0[k - 1], views[i].1[k - 1]);
+            }
         }
-        cp[len - 2] = [0.0; L];
-        // Entry len − 1 (past the last spring): a zero change and direction, which the back
-        // substitution's first step reads as its successor's.
-        dp[len - 1] = [0.0; L];
-        (nx[len - 1], ny[len - 1], nz[len - 1]) = ([0.0; L], [0.0; L], [0.0; L]);
+        for (cp, _, _) in &mut views {
+            cp[len - 2] = [0.0; L];
+        }
     }
-    let [xs, ys, zs] = x.map(|a| &mut a.as_chunks_mut::<L>().0[..len]);
-    let lam = &mut lambda.as_chunks_mut::<L>().0[..len];
-    let [nx, ny, nz] = n.map(|a| &a.as_chunks::<L>().0[..len]);
-    let cp = &cp.as_chunks::<L>().0[..len];
-    // The multipliers' changes replace the right-hand sides in place (`dp[k]` becomes Δλ_k,
-    // read by step k − 1 as its successor's).
-    let dp = &mut dp.as_chunks_mut::<L>().0[..len];
+    // 3. The back substitution, the blocks' steps interleaved. The multipliers' changes
+    // replace the right-hand sides in place (`dp[k]` becomes Δλ_k, read by step k − 1 as its
+    // successor's).
+    let mut parts = blocks.map(|block| {
+        let Block {
+            x,
+            w,
+            lambda,
+            n,
+            cp,
+            dp,
+            ..
+        } = block;
+        (
+            x.map(|a| &mut a.as_chunks_mut::<L>().0[..len]),
+            &w.as_chunks::<L>().0[..len],
+            &mut lambda.as_chunks_mut::<L>().0[..len],
+            n.map(|a| &a.as_chunks::<L>().0[..len]),
+            &cp.as_chunks::<L>().0[..len],
+            &mut dp.as_chunks_mut::<L>().0[..len],
+        )
+    });
     for k in (0..len - 1).rev() {
-        let b = k + 1;
-        let dl_next = dp[b];
-        // Whole-lane steps (simple loops, each one vector operation per lane group).
-        let mut dl = [0.0_f32; L];
-        for l in 0..L {
-            dl[l] = dp[k][l] - cp[k][l] * dl_next[l];
-        }
-        dp[k] = dl;
-        let wb = w[b];
-        for (x, (n_k, n_next)) in [&mut xs[b], &mut ys[b], &mut zs[b]].into_iter().zip([
-            (&nx[k], &nx[b]),
-            (&ny[k], &ny[b]),
-            (&nz[k], &nz[b]),
-        ]) {
-            // Through a local copy (no alias checks in the lane loop).
-            let mut v = *x;
-            apply(&mut v, &wb, &dl, n_k, &dl_next, n_next);
-            *x = v;
-        }
-        if keep {
+        for ([xs, ys, zs], w, lam, [nx, ny, nz], cp, dp) in &mut parts {
+            let b = k + 1;
+            let dl_next = dp[b];
+            // Whole-lane steps (simple loops, each one vector operation per lane group).
+            let mut dl = [0.0_f32; L];
             for l in 0..L {
-                lam[k][l] += dl[l];
+                dl[l] = dp[k][l] - cp[k][l] * dl_next[l];
+            }
+            dp[k] = dl;
+            let wb = w[b];
+            for (x, (n_k, n_next)) in [&mut xs[b], &mut ys[b], &mut zs[b]].into_iter().zip([
+                (&nx[k], &nx[b]),
+                (&ny[k], &ny[b]),
+                (&nz[k], &nz[b]),
+            ]) {
+                // Through a local copy (no alias checks in the lane loop).
+                let mut v = *x;
+                apply(&mut v, &wb, &dl, n_k, &dl_next, n_next);
+                *x = v;
+            }
+            if keep {
+                for l in 0..L {
+                    lam[k][l] += dl[l];
+                }
             }
         }
     }
-    let (dl_first, n_first) = (dp[0], [nx[0], ny[0], nz[0]]);
-    for l in 0..L {
-        let s = w[0][l] * dl_first[l];
-        xs[0][l] -= s * n_first[0][l];
-        ys[0][l] -= s * n_first[1][l];
-        zs[0][l] -= s * n_first[2][l];
+    for ([xs, ys, zs], w, _, [nx, ny, nz], _, dp) in &mut parts {
+        let (dl_first, n_first) = (dp[0], [nx[0], ny[0], nz[0]]);
+        for l in 0..L {
+            let s = w[0][l] * dl_first[l];
+            xs[0][l] -= s * n_first[0][l];
+            ys[0][l] -= s * n_first[1][l];
+            zs[0][l] -= s * n_first[2][l];
+        }
     }
 }
 
@@ -314,6 +348,11 @@ pub(crate) enum Multipliers {
 /// `iterations` Newton iterations of the chain solves of a block (`XpbdSettings::
 /// chain_iterations`): [`solve`] again from the positions the previous iteration left, the
 /// multipliers adding up over the iterations (and over the rounds, `multipliers`).
+///
+/// `chunk` holds one or two blocks ([`FIELDS`] arrays of `size` each, one after the other),
+/// solved together ([`solve`] interleaves their recurrences) where the kernel gains from it
+/// ([`crate::simd::chains_interleaved`]), else one after the other (the same bits either way);
+/// `scratch` holds [`SCRATCH`] arrays per block.
 pub(crate) fn iterate(
     chunk: &mut [f32],
     scratch: &mut [f32],
@@ -323,13 +362,32 @@ pub(crate) fn iterate(
     multipliers: Multipliers,
     kernel: crate::simd::Kernel,
 ) {
+    let count = chunk.len() / (FIELDS * size);
+    debug_assert!((1..=2).contains(&count) && chunk.len() == count * FIELDS * size);
     if multipliers == Multipliers::Fresh {
-        chunk[8 * size..9 * size].fill(0.0);
+        for block in chunk.chunks_exact_mut(FIELDS * size) {
+            block[8 * size..9 * size].fill(0.0);
+        }
     }
     let keep = multipliers != Multipliers::Unused;
     for _ in 0..iterations {
-        let block = Block::split(chunk, scratch, size);
-        crate::simd::xpbd_chains(kernel, block, len, alpha, gamma, keep);
+        let mut blocks = chunk.chunks_exact_mut(FIELDS * size);
+        let mut works = scratch.chunks_exact_mut(SCRATCH * size);
+        let mut next = || {
+            let (b, w) = (blocks.next()?, works.next().expect("scratch per block"));
+            Some(Block::split(b, w, size))
+        };
+        let first = next().expect("a block");
+        match next() {
+            Some(second) if crate::simd::chains_interleaved(kernel) => {
+                crate::simd::xpbd_chains(kernel, [first, second], len, alpha, gamma, keep);
+            }
+            Some(second) => {
+                crate::simd::xpbd_chains(kernel, [first], len, alpha, gamma, keep);
+                crate::simd::xpbd_chains(kernel, [second], len, alpha, gamma, keep);
+            }
+            None => crate::simd::xpbd_chains(kernel, [first], len, alpha, gamma, keep),
+        }
     }
 }
 
@@ -544,7 +602,7 @@ pub(crate) fn solve_reference(
         }
         for _ in 0..iterations {
             let (fields, work) = scratch.split_at_mut(FIELDS * len);
-            solve::<1>(Block::split(fields, work, len), len, alpha, gamma, true);
+            solve::<1, 1>([Block::split(fields, work, len)], len, alpha, gamma, true);
         }
         for k in 0..len {
             let i = at(class, cols, chain, k);

@@ -23,9 +23,10 @@
 //!    then colour 1, as compliant XPBD constraints (the reference's formula: compliance
 //!    α = 1/k, dashpot as constraint damping); with `XpbdSettings::chains`, shear and bend
 //!    first and then the warp and the weft as whole chains ([`super::chains`]: every column,
-//!    then every row, each solved exactly by a tridiagonal solve, in blocks of 16 chains, the
-//!    weft taking the warp's positions straight from its blocks), `XpbdSettings::chain_rounds`
-//!    times in turn (each round after a contact pass when there are several);
+//!    then every row, each solved exactly by a tridiagonal solve, in blocks of 16 chains two
+//!    blocks at a time, the weft taking the warp's positions straight from its blocks),
+//!    `XpbdSettings::chain_rounds` times in turn (each round after a contact pass when there
+//!    are several);
 //! 2. the multi-resolution strain limits, when `XpbdSettings::hierarchy_levels > 0` (after
 //!    Wang, O'Brien & Ramamoorthi 2010, "Multi-resolution isotropic strain limiting"): for
 //!    each spacing s = 2, 4, …, 2^levels, particles `s` apart along the warp and along the
@@ -525,11 +526,12 @@ impl XpbdGrid {
 
     /// The chain solves of the warp (`class` 0, one chain per column) or of the weft
     /// (`class` 1, one per row), see [`super::chains`]: blocks of [`super::chains::LANES`] chains
-    /// gathered, solved and scattered back, blocks in parallel (each block's chains are
-    /// independent of the others', so any thread count gives the same bits). A weft block is
-    /// gathered, solved and written back in one task (its rows are its own), followed there by
-    /// the contacts of its rows with `contacts` (the colliders and the substep) when given; the
-    /// warp's columns are written back row by row in a second pass.
+    /// gathered, solved and scattered back, pairs of blocks ([`PAIR`]) in parallel (each
+    /// block's chains are independent of the others', so any thread count gives the same
+    /// bits). A pair of weft blocks is gathered, solved and written back in one task (its rows
+    /// are its own), followed there by the contacts of its rows with `contacts` (the colliders
+    /// and the substep) when given; the warp's columns are written back row by row in a second
+    /// pass.
     fn chains(
         &mut self,
         class: usize,
@@ -556,16 +558,19 @@ impl XpbdGrid {
             scratch.resize(blocks * FIELDS * size, 0.0);
             self.chain_statics[class] = false;
         }
-        self.chain_work.prepare(chains::SCRATCH * size);
+        // Blocks go in pairs, solved together (their recurrences interleaved, `chains::solve`).
+        let pair = PAIR * FIELDS * size;
+        self.chain_work.prepare(PAIR * chains::SCRATCH * size);
         let work = &self.chain_work;
         let statics = !self.chain_statics[class];
         self.chain_statics[class] = true;
         let starts = statics || !self.chain_starts[class];
         self.chain_starts[class] = true;
         let solve = |chunk: &mut [f32]| {
+            let blocks = chunk.len() / (FIELDS * size);
             chains::iterate(
                 chunk,
-                &mut work.mine()[..chains::SCRATCH * size],
+                &mut work.mine()[..blocks * chains::SCRATCH * size],
                 size,
                 len,
                 (alpha, gamma, iterations),
@@ -582,46 +587,60 @@ impl XpbdGrid {
             let keep = self.keep;
             let [x, y, z] = &mut self.pos;
             let lambda = &mut self.lambda[class];
-            let rows_per = LANES * cols;
+            let rows_per = PAIR * LANES * cols;
             scratch
-                .par_chunks_mut(FIELDS * size)
+                .par_chunks_mut(pair)
                 .zip(x.par_chunks_mut(rows_per))
                 .zip(y.par_chunks_mut(rows_per))
                 .zip(z.par_chunks_mut(rows_per))
                 .zip(lambda.par_chunks_mut(rows_per))
                 .enumerate()
-                .for_each(|(b, ((((chunk, x), y), z), lam))| {
-                    let first = b * LANES;
-                    let at = first * cols;
-                    if let Some(warp) = warp {
-                        chains::handoff::<LANES>(chunk, warp, b, (rows, cols), kernel);
+                .for_each(|(p, ((((chunk, x), y), z), lam))| {
+                    let first_row = p * PAIR * LANES;
+                    for (h, block) in chunk.chunks_exact_mut(FIELDS * size).enumerate() {
+                        let b = p * PAIR + h;
+                        let first = b * LANES;
+                        let at = first * cols;
+                        let mine = h * LANES * cols..;
+                        if let Some(warp) = warp {
+                            chains::handoff::<LANES>(block, warp, b, (rows, cols), kernel);
+                        }
+                        // The block's rows, as chain 0 onwards.
+                        chains::gather::<LANES>(
+                            block,
+                            len,
+                            (class, cols),
+                            (0, LANES.min(count - first)),
+                            warp.is_none().then_some([
+                                &x[mine.clone()],
+                                &y[mine.clone()],
+                                &z[mine.clone()],
+                            ]),
+                            starts.then_some([&prev[0][at..], &prev[1][at..], &prev[2][at..]]),
+                            &w[at..],
+                            &rest[at..],
+                            keep.then_some(&lam[mine]),
+                            statics,
+                            kernel,
+                        );
                     }
-                    // The block's rows, as chain 0 onwards.
-                    chains::gather::<LANES>(
-                        chunk,
-                        len,
-                        (class, cols),
-                        (0, LANES.min(count - first)),
-                        warp.is_none().then_some([&*x, &*y, &*z]),
-                        starts.then_some([&prev[0][at..], &prev[1][at..], &prev[2][at..]]),
-                        &w[at..],
-                        &rest[at..],
-                        keep.then_some(&*lam),
-                        statics,
-                        kernel,
-                    );
                     solve(chunk);
-                    // Positions (fields 0, 1, 2) and, when kept, multipliers (field 8) back.
-                    for (f, dst) in [&mut *x, &mut *y, &mut *z].into_iter().enumerate() {
-                        chains::scatter_rows::<LANES>(&chunk[f * size..], len, dst, cols, kernel);
-                    }
-                    if keep {
-                        chains::scatter_rows::<LANES>(&chunk[8 * size..], len, lam, cols, kernel);
+                    for (h, block) in chunk.chunks_exact(FIELDS * size).enumerate() {
+                        let mine = h * LANES * cols..;
+                        // Positions (fields 0, 1, 2) and, when kept, multipliers (field 8) back.
+                        for (f, dst) in [&mut *x, &mut *y, &mut *z].into_iter().enumerate() {
+                            let (src, dst) = (&block[f * size..], &mut dst[mine.clone()]);
+                            chains::scatter_rows::<LANES>(src, len, dst, cols, kernel);
+                        }
+                        if keep {
+                            let (src, dst) = (&block[8 * size..], &mut lam[mine]);
+                            chains::scatter_rows::<LANES>(src, len, dst, cols, kernel);
+                        }
                     }
                     // The next round's contacts on these rows (as `Self::contacts` does them).
                     if let Some(contacts) = &contacts {
                         let prev = [&prev[0][..], &prev[1][..], &prev[2][..]];
-                        contacts.rows(first, cols, [x, y, z], prev, w);
+                        contacts.rows(first_row, cols, [x, y, z], prev, w);
                     }
                 });
             return;
@@ -631,23 +650,25 @@ impl XpbdGrid {
         let keep = self.keep;
         let lambda = keep.then_some(&self.lambda[class][..]);
         scratch
-            .par_chunks_mut(FIELDS * size)
+            .par_chunks_mut(pair)
             .enumerate()
-            .for_each(|(b, chunk)| {
-                let first = b * LANES;
-                chains::gather::<LANES>(
-                    chunk,
-                    len,
-                    (class, cols),
-                    (first, LANES.min(count - first)),
-                    Some([x, y, z]),
-                    starts.then_some([&prev[0], &prev[1], &prev[2]]),
-                    w,
-                    rest,
-                    lambda,
-                    statics,
-                    kernel,
-                );
+            .for_each(|(p, chunk)| {
+                for (h, block) in chunk.chunks_exact_mut(FIELDS * size).enumerate() {
+                    let first = (p * PAIR + h) * LANES;
+                    chains::gather::<LANES>(
+                        block,
+                        len,
+                        (class, cols),
+                        (first, LANES.min(count - first)),
+                        Some([x, y, z]),
+                        starts.then_some([&prev[0], &prev[1], &prev[2]]),
+                        w,
+                        rest,
+                        lambda,
+                        statics,
+                        kernel,
+                    );
+                }
                 solve(chunk);
             });
         let scratch = &self.chains[class];
@@ -1009,6 +1030,11 @@ fn velocities(v: &mut [f32], x: &[f32], x0: &[f32], w: &[f32], inv_h: f32) {
         one(v, x, x0, w);
     }
 }
+
+/// Blocks of chains per task of the chain solves, solved together: the elimination and the
+/// back substitution are recurrences along the chains, and two blocks' run side by side
+/// (`chains::solve`).
+const PAIR: usize = 2;
 
 /// Lanes per chunk of [`velocities`].
 const CHUNK: usize = 32;
