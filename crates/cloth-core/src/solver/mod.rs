@@ -329,6 +329,42 @@ mod tests {
         assert_eq!(pool.install(|| with_pool_awake(|| 7)), 7);
     }
 
+    /// Simulations stepped from inside a parallel iterator (each step polling the pool while
+    /// the others' steps are queued on it) all finish, with the bits of a serial run.
+    #[test]
+    fn steps_inside_a_parallel_iterator_finish_with_the_serial_bits() {
+        use crate::{Collider, GridBuilder, Integrator, SimConfig, Simulation};
+        use rayon::prelude::*;
+        let make = |i: usize| {
+            let cloth = GridBuilder::new(12 + i, 10)
+                .origin(glam::Vec3::new(0.0, 1.0, 0.0))
+                .build()
+                .expect("a grid");
+            let integrator = [Integrator::Xpbd, Integrator::SymplecticEuler][i % 2];
+            let config = SimConfig {
+                integrator,
+                substeps: 24,
+                ..SimConfig::default()
+            };
+            let mut sim = Simulation::new(cloth, config).expect("a simulation");
+            sim.add_collider(Collider::sphere(glam::Vec3::ZERO, 0.5))
+                .expect("a sphere");
+            sim
+        };
+        let run = |sim: &mut Simulation| {
+            for _ in 0..5 {
+                sim.step().expect("a stable step");
+            }
+            sim.particles().position.clone()
+        };
+        let serial: Vec<_> = (0..6).map(|i| run(&mut make(i))).collect();
+        let parallel: Vec<_> = pool(3).install(|| {
+            let mut sims: Vec<_> = (0..6).map(make).collect();
+            sims.par_iter_mut().map(run).collect()
+        });
+        assert_eq!(serial, parallel);
+    }
+
     /// The caller's kernel choice (thread-local) holds for `f` when the call moves onto a
     /// pool thread.
     #[test]
