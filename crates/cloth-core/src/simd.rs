@@ -105,7 +105,7 @@ pub fn set_kernel(kernel: Option<Kernel>) -> Result<()> {
             "a kernel this CPU supports",
         ));
     }
-    CHOSEN.with(|c| c.set(kernel));
+    choose(kernel);
     Ok(())
 }
 
@@ -123,7 +123,7 @@ pub(crate) fn choose(kernel: Option<Kernel>) -> Option<Kernel> {
 /// The kernel the steps on this thread use.
 #[must_use]
 pub fn kernel() -> Kernel {
-    CHOSEN.with(Cell::get).unwrap_or_else(Kernel::best)
+    chosen().unwrap_or_else(Kernel::best)
 }
 
 /// The kernel that steps `sim` on this thread: [`kernel`] when a grid fast path applies (an
@@ -335,7 +335,7 @@ fn air_avx512(
 
 /// Whether `kernel` solves two blocks of chains together ([`chains::solve`] with `N = 2`, the
 /// two blocks' recurrences interleaved). With AVX-512's 32 vector registers both blocks'
-/// recurrences stay in registers (the 256² drape's chain kernel took 8.5 % fewer samples);
+/// recurrences stay in registers (the 256² drape's chain kernel took 6 % fewer samples);
 /// with AVX2's 16 they spill (24 % more), and the portable kernel has fewer still. The same
 /// bits either way.
 pub(crate) fn chains_interleaved(kernel: Kernel) -> bool {

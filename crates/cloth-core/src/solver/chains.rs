@@ -362,8 +362,7 @@ pub(crate) fn iterate(
     multipliers: Multipliers,
     kernel: crate::simd::Kernel,
 ) {
-    let count = chunk.len() / (FIELDS * size);
-    debug_assert!((1..=2).contains(&count) && chunk.len() == count * FIELDS * size);
+    debug_assert!(chunk.len() == FIELDS * size || chunk.len() == 2 * FIELDS * size);
     if multipliers == Multipliers::Fresh {
         for block in chunk.chunks_exact_mut(FIELDS * size) {
             block[8 * size..9 * size].fill(0.0);

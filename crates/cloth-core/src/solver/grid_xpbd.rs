@@ -567,10 +567,10 @@ impl XpbdGrid {
         let starts = statics || !self.chain_starts[class];
         self.chain_starts[class] = true;
         let solve = |chunk: &mut [f32]| {
-            let blocks = chunk.len() / (FIELDS * size);
+            let in_chunk = chunk.len() / (FIELDS * size);
             chains::iterate(
                 chunk,
-                &mut work.mine()[..blocks * chains::SCRATCH * size],
+                &mut work.mine()[..in_chunk * chains::SCRATCH * size],
                 size,
                 len,
                 (alpha, gamma, iterations),

@@ -218,7 +218,7 @@ impl Solver {
 /// a few dozen yields and then sleep, and on a virtual machine waking it takes tens of
 /// microseconds, often more than the imbalance it was waiting out: the 256² drape (3 substeps
 /// × 5 rounds × 2 iterations, 2 threads) spent ≈ 20 % of its wall time with a thread off the
-/// processor or in the scheduler, and runs ≈ 10 % faster with the threads kept awake
+/// processor or in the scheduler, and runs ≈ 8 % faster with the threads kept awake
 /// (interleaved medians, `docs/performance.md`). The pollers yield to the operating system
 /// whenever they find nothing, so a machine with more threads than cores still runs the
 /// work. Which thread runs which piece of work never changes the results (every parallel pass
@@ -244,7 +244,7 @@ pub(crate) fn with_pool_awake<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     // Nested joins: `f` on this thread, a poller offered to the others at each level.
     fn nest<R: Send>(
         pollers: usize,
-        owner: Option<usize>,
+        owner: usize,
         done: &AtomicBool,
         f: impl FnOnce() -> R + Send,
     ) -> R {
@@ -256,7 +256,7 @@ pub(crate) fn with_pool_awake<R: Send>(f: impl FnOnce() -> R + Send) -> R {
             || nest(pollers - 1, owner, done, f),
             || {
                 // Not on the thread running `f` (it takes back an unstolen poller after `f`).
-                if rayon::current_thread_index() == owner {
+                if rayon::current_thread_index() == Some(owner) {
                     return;
                 }
                 while !done.load(Ordering::Acquire) {
@@ -269,7 +269,7 @@ pub(crate) fn with_pool_awake<R: Send>(f: impl FnOnce() -> R + Send) -> R {
         r
     }
     match rayon::current_thread_index() {
-        Some(owner) => nest(threads - 1, Some(owner), &done, f),
+        Some(owner) => nest(threads - 1, owner, &done, f),
         // From outside the pool: `join` moves the whole call into it (the owner is then the
         // pool thread that runs `f`), with the caller's choice of kernel (thread-local,
         // `simd::set_kernel`), restored on that thread afterwards.
@@ -284,7 +284,8 @@ pub(crate) fn with_pool_awake<R: Send>(f: impl FnOnce() -> R + Send) -> R {
             rayon::join(
                 || {
                     let _restore = Restore(crate::simd::choose(chosen));
-                    nest(threads - 1, rayon::current_thread_index(), &done, f)
+                    let owner = rayon::current_thread_index().expect("`join` runs on the pool");
+                    nest(threads - 1, owner, &done, f)
                 },
                 || (),
             )
@@ -370,6 +371,11 @@ mod tests {
     #[test]
     fn with_pool_awake_keeps_the_callers_kernel() {
         use crate::simd::{self, Kernel};
+        // With several threads the call moves onto a pool thread (this test's thread is not
+        // one), which is what the kernel must survive.
+        if rayon::current_num_threads() > 1 {
+            assert!(with_pool_awake(rayon::current_thread_index).is_some());
+        }
         simd::set_kernel(Some(Kernel::Reference)).expect("the reference kernel runs anywhere");
         assert_eq!(with_pool_awake(simd::kernel), Kernel::Reference);
         simd::set_kernel(None).expect("the default");
