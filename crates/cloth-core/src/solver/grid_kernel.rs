@@ -1324,6 +1324,12 @@ fn lanes(s: &[f32], i: usize) -> &[f32; LANES] {
     s[i..i + LANES].try_into().expect("LANES elements")
 }
 
+/// `LANES` elements of `s` from `i`, as a mutable array.
+#[inline(always)]
+fn lanes_mut(s: &mut [f32], i: usize) -> &mut [f32; LANES] {
+    (&mut s[i..i + LANES]).try_into().expect("LANES elements")
+}
+
 /// Sums the forces on row `s` in the reference's order and integrates it into `band.out`.
 #[inline(always)]
 fn particle_row(job: &Job<'_>, s: usize, band: &mut Band) {
@@ -1516,7 +1522,9 @@ fn integrate_lanes<const S: u8, const AIR: bool>(
         let (m, wl, xl, vl) = (lanes(mass, c0), lanes(w, c0), lanes(x, c0), lanes(v, c0));
         let tl = chunks(t, c0);
         let al = if AIR { chunks(air, c0) } else { [xl; 6] };
-        let (mut ox, mut ov) = ([0.0; LANES], [0.0; LANES]);
+        // Written straight into the output rows: through local arrays the results took a
+        // round trip through the stack (zeroed, written, read back, copied).
+        let (ox, ov) = (lanes_mut(out_x, c0), lanes_mut(out_v, c0));
         for j in 0..LANES {
             let terms = [
                 tl[0][j], tl[1][j], tl[2][j], tl[3][j], tl[4][j], tl[5][j], tl[6][j], tl[7][j],
@@ -1525,8 +1533,6 @@ fn integrate_lanes<const S: u8, const AIR: bool>(
             let a = [al[0][j], al[1][j], al[2][j], al[3][j], al[4][j], al[5][j]];
             (ox[j], ov[j]) = one!(m[j], wl[j], xl[j], vl[j], terms, a);
         }
-        out_x[c0..c0 + LANES].copy_from_slice(&ox);
-        out_v[c0..c0 + LANES].copy_from_slice(&ov);
         c0 += LANES;
     }
     for c in c0..n {
