@@ -149,7 +149,9 @@ pub(crate) struct Band {
     state: [[Vec<f32>; 6]; 3],
     /// Spring force by class, ring slot and component (`cols + 2·PAD` each).
     force: [[[Vec<f32>; 3]; 3]; 6],
-    /// The new state of the current row, by component: x, y, z, vx, vy, vz.
+    /// The new state of the current row, by component: x, y, z, vx, vy, vz, when the band
+    /// writes into positions and velocities ([`Dest::Particles`]); into row-blocked arrays
+    /// ([`Dest::Rows`]) it writes the row in place.
     out: [Vec<f32>; 6],
     /// Air: the force / 3 of both triangles of the cells between rows `r` and `r + 1`, by
     /// ring slot `r % 2`, triangle and component; cell `c` at `1 + c`, −0.0 in the first and
@@ -670,16 +672,29 @@ pub(crate) fn band(
             );
         }
         if s >= r0 {
-            particle_row(job, s, band);
+            // The new row: straight into the row-blocked arrays, or into the band's row
+            // buffers (then converted into `Vec3`s).
+            let (mut out, particles) = match &mut dest {
+                Dest::Rows(rows) => (
+                    split_row(&mut rows[6 * cols * (s - r0)..][..6 * cols], cols),
+                    None,
+                ),
+                Dest::Particles(px, pv) => {
+                    let [x, y, z, vx, vy, vz] = &mut band.out;
+                    let out = [x, y, z, vx, vy, vz].map(|a| &mut a[..cols]);
+                    (out, Some((px, pv)))
+                }
+            };
+            particle_row(job, s, &band.state, &band.force, &band.air, &mut out);
             // With the discrete contacts done on the arrays, the rows that also run continuous
             // collision get their candidates there too (old positions = the ring's row, which
             // Verlet's drift has changed: it keeps the per-particle mask).
             let premasked = job.soa_contacts && job.ccd && job.scheme != Scheme::Verlet;
             if job.soa_contacts {
-                result.contacts += contacts_soa(job, s, &mut band.out);
+                result.contacts += contacts_soa(job, s, &mut out);
             }
             if premasked {
-                ccd_mask_soa(job, s, &band.state[s % 3], &band.out, &mut band.near);
+                ccd_mask_soa(job, s, &band.state[s % 3], &out, &mut band.near);
             }
             // The per-particle passes (other colliders, continuous-collision candidates) on
             // the row as `Vec3`.
@@ -691,7 +706,7 @@ pub(crate) fn band(
                 !job.soa_contacts || job.ccd
             };
             if per_particle {
-                let [x, y, z, vx, vy, vz] = &band.out;
+                let [x, y, z, vx, vy, vz] = &out;
                 for c in 0..cols {
                     band.px[c] = Vec3::new(x[c], y[c], z[c]);
                     band.pv[c] = Vec3::new(vx[c], vy[c], vz[c]);
@@ -708,13 +723,15 @@ pub(crate) fn band(
                     premasked,
                     &mut result,
                 );
-                let [x, y, z, vx, vy, vz] = &mut band.out;
+                let [x, y, z, vx, vy, vz] = &mut out;
                 for c in 0..cols {
                     [x[c], y[c], z[c]] = band.px[c].to_array();
                     [vx[c], vy[c], vz[c]] = band.pv[c].to_array();
                 }
             }
-            write_row(&band.out, s - r0, cols, &mut dest);
+            if let Some((px, pv)) = particles {
+                write_particles(&out, s - r0, cols, px, pv);
+            }
         }
         // Row s + 3 replaces row s in the ring (needed by the springs of row s + 1).
         if s + 3 < rows && s + 1 < r1 {
@@ -831,7 +848,7 @@ fn contacts_row(
 /// `respond`, `coulomb`), computed in every lane and selected, so the bits are the
 /// reference's. Returns the number of contacts.
 #[inline(always)]
-fn contacts_soa(job: &Job<'_>, s: usize, out: &mut [Vec<f32>; 6]) -> u32 {
+fn contacts_soa(job: &Job<'_>, s: usize, out: &mut [&mut [f32]; 6]) -> u32 {
     use crate::collide::Shape;
     let cols = job.cols;
     let w = &job.inv_mass[s * cols..][..cols];
@@ -1000,7 +1017,13 @@ fn near_mask(job: &Job<'_>, start: &[Vec3], px: &[Vec3], near: &mut [bool]) {
 /// `φ(a) + φ(b) ≥ |b − a|`; touching at the start with `(b − a)·n ≥ −τ`). The colliders are
 /// spheres and planes that do not turn ([`Job::soa_contacts`]).
 #[inline(always)]
-fn ccd_mask_soa(job: &Job<'_>, s: usize, a: &[Vec<f32>; 6], b: &[Vec<f32>; 6], near: &mut [bool]) {
+fn ccd_mask_soa(
+    job: &Job<'_>,
+    s: usize,
+    a: &[Vec<f32>; 6],
+    b: &[&mut [f32]; 6],
+    near: &mut [bool],
+) {
     let cols = job.cols;
     ccd_mask(
         job.colliders,
@@ -1220,25 +1243,26 @@ fn old_positions(job: &Job<'_>, s: usize, dst: &mut [Vec3]) {
     }
 }
 
-/// Writes a band's new row `i` (counted from the band's first row) to `dest`.
+/// Row `i` of a band's new state (x, y, z, vx, vy, vz) into its positions and velocities.
 #[inline(always)]
-fn write_row(out: &[Vec<f32>; 6], i: usize, cols: usize, dest: &mut Dest<'_>) {
-    match dest {
-        Dest::Particles(px, pv) => {
-            let (px, pv) = (&mut px[i * cols..][..cols], &mut pv[i * cols..][..cols]);
-            let [x, y, z, vx, vy, vz] = out;
-            for c in 0..cols {
-                px[c] = Vec3::new(x[c], y[c], z[c]);
-                pv[c] = Vec3::new(vx[c], vy[c], vz[c]);
-            }
-        }
-        Dest::Rows(rows) => {
-            let row = &mut rows[6 * cols * i..][..6 * cols];
-            for (k, comp) in row.chunks_exact_mut(cols).enumerate() {
-                comp.copy_from_slice(&out[k][..cols]);
-            }
-        }
+fn write_particles(out: &[&mut [f32]; 6], i: usize, cols: usize, px: &mut [Vec3], pv: &mut [Vec3]) {
+    let (px, pv) = (&mut px[i * cols..][..cols], &mut pv[i * cols..][..cols]);
+    let [x, y, z, vx, vy, vz] = out;
+    for c in 0..cols {
+        px[c] = Vec3::new(x[c], y[c], z[c]);
+        pv[c] = Vec3::new(vx[c], vy[c], vz[c]);
     }
+}
+
+/// A row of the row-blocked arrays (`6 · cols` floats) as its six components.
+#[inline(always)]
+fn split_row(row: &mut [f32], cols: usize) -> [&mut [f32]; 6] {
+    let (x, rest) = row.split_at_mut(cols);
+    let (y, rest) = rest.split_at_mut(cols);
+    let (z, rest) = rest.split_at_mut(cols);
+    let (vx, rest) = rest.split_at_mut(cols);
+    let (vy, vz) = rest.split_at_mut(cols);
+    [x, y, z, vx, vy, &mut vz[..cols]]
 }
 
 /// Hooke spring plus dashpot for `m` springs from ends `a` to ends `b` (x, y, z, vx, vy, vz
@@ -1332,7 +1356,14 @@ fn lanes_mut(s: &mut [f32], i: usize) -> &mut [f32; LANES] {
 
 /// Sums the forces on row `s` in the reference's order and integrates it into `band.out`.
 #[inline(always)]
-fn particle_row(job: &Job<'_>, s: usize, band: &mut Band) {
+fn particle_row(
+    job: &Job<'_>,
+    s: usize,
+    ring: &[[Vec<f32>; 6]; 3],
+    force: &[[[Vec<f32>; 3]; 3]; 6],
+    air: &[[[Vec<f32>; 3]; 2]; 2],
+    out: &mut [&mut [f32]; 6],
+) {
     let (rows, cols) = (job.rows, job.cols);
     let slot = |r: usize| r % 3;
     let on = |class: usize| job.params[class].is_some();
@@ -1342,13 +1373,13 @@ fn particle_row(job: &Job<'_>, s: usize, band: &mut Band) {
     let mass = &job.mass[lo..][..cols];
     let w = &job.inv_mass[lo..][..cols];
     let g = job.gravity.to_array();
-    let state = &band.state[slot(s)];
-    let (out_x, out_v) = band.out.split_at_mut(3);
+    let state = &ring[slot(s)];
+    let (out_x, out_v) = out.split_at_mut(3);
     for comp in 0..3 {
         let pick = |class: usize, r: Option<usize>, added: bool| -> &[f32] {
             let (dr, _, _, _) = CLASSES[class];
             match r {
-                Some(r) if on(class) && r + dr < rows => &band.force[class][slot(r)][comp],
+                Some(r) if on(class) && r + dr < rows => &force[class][slot(r)][comp],
                 _ if added => job.minus_zero,
                 _ => job.plus_zero,
             }
@@ -1374,7 +1405,7 @@ fn particle_row(job: &Job<'_>, s: usize, band: &mut Band) {
         let air = job.air.is_some().then(|| {
             let cells = |r: Option<usize>, k: usize| -> &[f32] {
                 match r {
-                    Some(r) if r + 1 < rows => &band.air[r % 2][k][comp],
+                    Some(r) if r + 1 < rows => &air[r % 2][k][comp],
                     _ => job.minus_zero,
                 }
             };
