@@ -680,8 +680,9 @@ pub(crate) fn band(
                     None,
                 ),
                 Dest::Particles(px, pv) => {
+                    // (`prepare` sizes the buffers to `cols`.)
                     let [x, y, z, vx, vy, vz] = &mut band.out;
-                    let out = [x, y, z, vx, vy, vz].map(|a| &mut a[..cols]);
+                    let out = [x, y, z, vx, vy, vz].map(Vec::as_mut_slice);
                     (out, Some((px, pv)))
                 }
             };
@@ -1354,7 +1355,8 @@ fn lanes_mut(s: &mut [f32], i: usize) -> &mut [f32; LANES] {
     (&mut s[i..i + LANES]).try_into().expect("LANES elements")
 }
 
-/// Sums the forces on row `s` in the reference's order and integrates it into `band.out`.
+/// Sums the forces on row `s` in the reference's order and integrates it into `out` (x, y, z,
+/// vx, vy, vz of the new row), reading the ring's state, force and air rows.
 #[inline(always)]
 fn particle_row(
     job: &Job<'_>,
