@@ -130,9 +130,12 @@ pub(crate) struct GridScratch {
     next_position: Vec<Vec3>,
     next_velocity: Vec<Vec3>,
     /// The state kept between substeps of a step (see [`Plan::persist`]), row-blocked
-    /// structure of arrays: row `s` is x, y, z, vx, vy, vz (`cols` each) from `6·cols·s`.
-    rows: Vec<f32>,
-    next_rows: Vec<f32>,
+    /// structure of arrays: row `s` is x, y, z, vx, vy, vz (`cols` each) from `6·cols·s`;
+    /// each buffer starts on a cache line ([`Placed`]: with the allocator's 16-byte alignment
+    /// every 64-byte load and store of a row straddled two lines, ≈ 5 % of the peer scene's
+    /// time).
+    rows: Placed,
+    next_rows: Placed,
     /// `rows` holds the current state and the particles' positions and velocities are
     /// stale.
     resident: bool,
@@ -436,7 +439,12 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         b.prepare(cols);
     }
     if plan.persist {
-        scratch.next_rows.resize(6 * n, 0.0);
+        if scratch.next_rows.len() != 6 * n {
+            // Both state buffers start on a cache line (a row's arrays then load and store
+            // whole lines, none split across two), half a page apart from each other.
+            let slot = if scratch.rows.len() == 6 * n { 32 } else { 0 };
+            scratch.next_rows.reset(6 * n, slot);
+        }
     } else {
         scratch.next_position.resize(n, Vec3::ZERO);
         scratch.next_velocity.resize(n, Vec3::ZERO);
