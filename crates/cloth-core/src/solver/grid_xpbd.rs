@@ -90,8 +90,9 @@ struct Level {
 /// change a result. A clone starts empty.
 #[derive(Debug, Default)]
 struct ThreadScratch {
-    /// One vector per thread, each `len` floats long.
-    each: Vec<std::sync::Mutex<Vec<f32>>>,
+    /// One vector per thread, each `len` floats long, each starting on a cache line of its
+    /// own ([`Placed`]: the chain solves load whole lines of it).
+    each: Vec<std::sync::Mutex<Placed>>,
     len: usize,
 }
 
@@ -109,13 +110,17 @@ impl ThreadScratch {
         if self.each.len() != threads || self.len < len {
             self.len = self.len.max(len);
             self.each = (0..threads)
-                .map(|_| std::sync::Mutex::new(vec![0.0; self.len]))
+                .map(|t| {
+                    let mut v = Placed::default();
+                    v.reset(self.len, SCRATCH_SLOT + t);
+                    std::sync::Mutex::new(v)
+                })
                 .collect();
         }
     }
 
     /// The calling thread's vector (the first one off a pool).
-    fn mine(&self) -> std::sync::MutexGuard<'_, Vec<f32>> {
+    fn mine(&self) -> std::sync::MutexGuard<'_, Placed> {
         let i = rayon::current_thread_index().unwrap_or(0) % self.each.len();
         // A poisoned lock only means a panic elsewhere; the scratch is rewritten before use.
         self.each[i]
@@ -147,8 +152,9 @@ pub(crate) struct XpbdGrid {
     inv_mass: Placed,
     /// Corrections of a horizontal pass, by component.
     corr: [Placed; 3],
-    /// Colour masks (1.0 in the colour, 0.0 outside) by log2 of the spacing and colour.
-    masks: Vec<[Vec<f32>; 2]>,
+    /// Colour masks (1.0 in the colour, 0.0 outside) by log2 of the spacing and colour, each
+    /// on cache lines of its own ([`Placed`]).
+    masks: Vec<[Placed; 2]>,
     /// Whether the multipliers are kept (more than one sweep per substep).
     keep: bool,
     /// Strain-limit levels and the `(levels, slack bits)` they were built for.
@@ -159,8 +165,10 @@ pub(crate) struct XpbdGrid {
     air: [[Placed; 3]; 2],
     /// Velocities (structure of arrays), kept like `pos`.
     vel: [Placed; 3],
-    /// Blocks of the chain solves (`XpbdSettings::chains`): warp (columns), weft (rows).
-    chains: [Vec<f32>; 2],
+    /// Blocks of the chain solves (`XpbdSettings::chains`): warp (columns), weft (rows), each
+    /// starting on a cache line ([`Placed`]; the allocator aligns a `Vec` to 16 bytes only, and
+    /// every 16-lane load and store of a block then straddled two lines).
+    chains: [Placed; 2],
     /// The chain solves' scratch, one per thread of the pool.
     chain_work: ThreadScratch,
     /// Whether each direction's blocks hold the current inverse masses and rest lengths.
@@ -226,12 +234,17 @@ impl XpbdGrid {
                 slot += 1;
             }
             self.masks.clear();
+            let mut slot = MASK_SLOT;
             let mut s = 1;
             while s < cols.max(rows) {
                 self.masks.push([0, 1].map(|colour| {
-                    (0..cols)
-                        .map(|c| f32::from(u8::from((c / s) % 2 == colour)))
-                        .collect()
+                    let mut mask = Placed::default();
+                    mask.reset(cols, slot);
+                    slot += 1;
+                    for (c, m) in mask.iter_mut().enumerate() {
+                        *m = f32::from(u8::from((c / s) % 2 == colour));
+                    }
+                    mask
                 }));
                 s *= 2;
             }
@@ -554,8 +567,7 @@ impl XpbdGrid {
             (weft, handoff.then_some(&warp[..]))
         };
         if scratch.len() != blocks * FIELDS * size {
-            scratch.clear();
-            scratch.resize(blocks * FIELDS * size, 0.0);
+            scratch.reset(blocks * FIELDS * size, CHAIN_SLOT + class);
             self.chain_statics[class] = false;
         }
         // Blocks go in pairs, solved together (their recurrences interleaved, `chains::solve`).
@@ -1464,6 +1476,12 @@ fn surely_clear(col: &crate::collide::Collider, p: Vec3) -> bool {
 /// From this spacing on, a horizontal pass runs as blocks of two disjoint runs of `s`
 /// columns (no masked lanes, in place) instead of the masked two-phase row kernel.
 const BLOCK_SPACING: usize = 16;
+
+/// [`Placed`] slots of the chain blocks (warp, weft) and of the first thread's chain scratch
+/// (past the grid's arrays, slots 0–37), and of the first colour mask.
+const CHAIN_SLOT: usize = 40;
+const SCRATCH_SLOT: usize = 42;
+const MASK_SLOT: usize = 50;
 
 /// Particles per chunk of the vectorised contact pre-test.
 const NEAR_CHUNK: usize = 64;
