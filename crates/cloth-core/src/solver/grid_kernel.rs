@@ -561,11 +561,7 @@ pub(crate) fn sync(scratch: &mut GridScratch, position: &mut [Vec3], velocity: &
         .zip(position.chunks_exact_mut(cols))
         .zip(velocity.chunks_exact_mut(cols))
     {
-        let (px, rest) = row.split_at(cols);
-        let (py, rest) = rest.split_at(cols);
-        let (pz, rest) = rest.split_at(cols);
-        let (vx, rest) = rest.split_at(cols);
-        let (vy, vz) = rest.split_at(cols);
+        let [px, py, pz, vx, vy, vz] = row_parts(row, cols);
         for c in 0..cols {
             x[c] = Vec3::new(px[c], py[c], pz[c]);
             v[c] = Vec3::new(vx[c], vy[c], vz[c]);
@@ -1201,12 +1197,7 @@ fn load_row(job: &Job<'_>, s: usize, drift: bool, half: f32, dst: &mut [Vec<f32>
             (&position[s * cols..][..cols], &velocity[s * cols..][..cols])
         }
         Source::Rows(all) => {
-            let row = &all[6 * cols * s..][..6 * cols];
-            let (px, rest) = row.split_at(cols);
-            let (py, rest) = rest.split_at(cols);
-            let (pz, rest) = rest.split_at(cols);
-            let (pvx, rest) = rest.split_at(cols);
-            let (pvy, pvz) = rest.split_at(cols);
+            let [px, py, pz, pvx, pvy, pvz] = row_parts(&all[6 * cols * s..][..6 * cols], cols);
             // `p + ½h·v` per component, as glam computes it for `Vec3`.
             for c in 0..cols {
                 let (p, v) = ([px[c], py[c], pz[c]], [pvx[c], pvy[c], pvz[c]]);
@@ -1261,6 +1252,17 @@ fn write_particles(out: &[&mut [f32]; 6], i: usize, cols: usize, px: &mut [Vec3]
         px[c] = Vec3::new(x[c], y[c], z[c]);
         pv[c] = Vec3::new(vx[c], vy[c], vz[c]);
     }
+}
+
+/// A row of the row-blocked arrays (`6 · cols` floats) as its six components, read-only.
+#[inline(always)]
+fn row_parts(row: &[f32], cols: usize) -> [&[f32]; 6] {
+    let (x, rest) = row.split_at(cols);
+    let (y, rest) = rest.split_at(cols);
+    let (z, rest) = rest.split_at(cols);
+    let (vx, rest) = rest.split_at(cols);
+    let (vy, vz) = rest.split_at(cols);
+    [x, y, z, vx, vy, &vz[..cols]]
 }
 
 /// A row of the row-blocked arrays (`6 · cols` floats) as its six components.
