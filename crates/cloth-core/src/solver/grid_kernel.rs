@@ -1066,10 +1066,12 @@ pub(crate) fn ccd_mask(
             _ => unreachable!("soa_contacts holds only spheres and planes"),
         };
         let tau = ccd::tolerance(col);
+        let radius = ccd::curvature_radius(&col.shape).expect("a sphere or a plane");
         // `resolve_in`'s start point in the collider's end pose (no turn): a + (p₁ − p₀).
         let pivot_end = col.shape.pivot();
         let shift = pivot_end - (pivot_end - col.velocity * h);
-        // `resolve_in`'s cheap tests of one particle (pinned, path under ½τ, `φ(b) ≥ |b − a|`),
+        // `resolve_in`'s cheap tests of one particle (pinned, path under ½τ, `φ(b) ≥ |b − a|`,
+        // ending too shallow to be corrected: [`ccd::shallow`]),
         // with `|` (no short-circuit, no branch), and what the others need: the start point,
         // the path, its length and `φ(b)`.
         let cheap = |w: f32, [ax, ay, az]: [f32; 3], [bx, by, bz]: [f32; 3]| {
@@ -1083,7 +1085,8 @@ pub(crate) fn ccd_mask(
                 | (l2 < 0.2 * tau * tau)
                 | len.is_nan()
                 | (len < 0.5 * tau)
-                | (db >= len);
+                | (db >= len)
+                | ccd::shallow(radius, tau, len, db);
             (skip, [sx, sy, sz], [qx, qy, qz], len, db)
         };
         // The other tests: `φ(a) < 0`, `φ(a) + φ(b) ≥ |b − a|`, touching at the start and
