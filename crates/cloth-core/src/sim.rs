@@ -533,9 +533,15 @@ impl Simulation {
         let mut contacts = ContactStats::default();
         let (time, config, topology, rest) =
             (self.time, &self.config, &self.topology, &self.rest_position);
-        let (colliders, solver, particles) =
-            (&mut self.colliders, &mut self.solver, &mut self.particles);
-        crate::solver::with_pool_awake(|| {
+        let (colliders, solver, particles, pin_target) = (
+            &mut self.colliders,
+            &mut self.solver,
+            &mut self.particles,
+            &self.pin_target,
+        );
+        // Stages 3 to 5 with the pool's threads kept awake: the diagnostics' parallel passes
+        // then start at once instead of waking a sleeping thread for each.
+        let (mut stats, bad) = crate::solver::with_pool_awake(|| {
             for s in 0..config.substeps {
                 let t = time + f64::from(h) * f64::from(s);
                 for c in colliders.iter_mut() {
@@ -555,30 +561,25 @@ impl Simulation {
                     },
                 );
             }
-        });
 
-        self.solver.end_step(&mut self.particles);
+            solver.end_step(particles);
 
-        // 4. pins (the targets are cleared only once the step is accepted, so that a failed
-        //    step leaves them set, like the rest of the state)
-        for (i, target) in self.pin_target.iter().enumerate() {
-            if let Some(t) = *target {
-                if self.particles.inv_mass[i] == 0.0 {
-                    self.particles.position[i] = t;
-                    self.particles.velocity[i] = Vec3::ZERO;
+            // 4. pins (the targets are cleared only once the step is accepted, so that a
+            //    failed step leaves them set, like the rest of the state)
+            for (i, target) in pin_target.iter().enumerate() {
+                if let Some(t) = *target {
+                    if particles.inv_mass[i] == 0.0 {
+                        particles.position[i] = t;
+                        particles.velocity[i] = Vec3::ZERO;
+                    }
+                } else if particles.inv_mass[i] == 0.0 {
+                    particles.velocity[i] = Vec3::ZERO;
                 }
-            } else if self.particles.inv_mass[i] == 0.0 {
-                self.particles.velocity[i] = Vec3::ZERO;
             }
-        }
 
-        // 5. diagnostics and instability check
-        let (mut stats, bad) = measure(
-            &self.config,
-            &self.topology,
-            &self.particles,
-            &self.colliders,
-        );
+            // 5. diagnostics and instability check
+            measure(config, topology, particles, colliders)
+        });
         if let Some(bad) = bad {
             self.particles.position.clone_from(&self.backup_position);
             self.particles.velocity.clone_from(&self.backup_velocity);

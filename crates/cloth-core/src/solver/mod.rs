@@ -209,7 +209,8 @@ impl Solver {
     }
 }
 
-/// Runs `f` (a step's substeps) on the current rayon pool with its other threads kept awake:
+/// Runs `f` (a step's substeps and diagnostics) on the current rayon pool with its other
+/// threads kept awake:
 /// each polls for work (`rayon::yield_now`, and the operating system's yield when there is
 /// none) until `f` returns, instead of falling asleep whenever it runs out of work.
 ///
