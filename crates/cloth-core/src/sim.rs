@@ -510,25 +510,16 @@ impl Simulation {
     /// [`ClothError::Unstable`] when the step would leave a non-finite or runaway state; the
     /// simulation then keeps the state it had before the call.
     pub fn step(&mut self) -> Result<StepStats> {
-        // 1. snapshot
-        self.backup_position.clone_from(&self.particles.position);
-        self.backup_velocity.clone_from(&self.particles.velocity);
+        // 1. snapshot (the colliders here; the particles below, in parallel)
         self.backup_colliders.clone_from(&self.colliders);
-
-        // 2. pins
-        let dt = self.config.dt;
-        for (i, target) in self.pin_target.iter().enumerate() {
-            if self.particles.inv_mass[i] != 0.0 {
-                continue;
-            }
-            self.particles.velocity[i] = match target {
-                Some(t) => (*t - self.particles.position[i]) / dt,
-                None => Vec3::ZERO,
-            };
+        let n = self.particles.len();
+        if self.backup_position.len() != n {
+            self.backup_position.resize(n, Vec3::ZERO);
+            self.backup_velocity.resize(n, Vec3::ZERO);
         }
 
-        // 3. substeps
         self.solver.begin_step();
+        let dt = self.config.dt;
         let h = self.config.substep_dt();
         let mut contacts = ContactStats::default();
         let (time, config, topology, rest) =
@@ -539,9 +530,26 @@ impl Simulation {
             &mut self.particles,
             &self.pin_target,
         );
-        // Stages 3 to 5 with the pool's threads kept awake: the diagnostics' parallel passes
-        // then start at once instead of waking a sleeping thread for each.
+        let (backup_position, backup_velocity) =
+            (&mut self.backup_position, &mut self.backup_velocity);
+        // Stages 1 to 5 with the pool's threads kept awake: the copies and the diagnostics'
+        // parallel passes then start at once instead of waking a sleeping thread for each.
         let (mut stats, bad) = crate::solver::with_pool_awake(|| {
+            copy_in_parallel(backup_position, &particles.position);
+            copy_in_parallel(backup_velocity, &particles.velocity);
+
+            // 2. pins
+            for (i, target) in pin_target.iter().enumerate() {
+                if particles.inv_mass[i] != 0.0 {
+                    continue;
+                }
+                particles.velocity[i] = match target {
+                    Some(t) => (*t - particles.position[i]) / dt,
+                    None => Vec3::ZERO,
+                };
+            }
+
+            // 3. substeps
             for s in 0..config.substeps {
                 let t = time + f64::from(h) * f64::from(s);
                 for c in colliders.iter_mut() {
@@ -603,4 +611,14 @@ impl Simulation {
         self.stats = stats;
         Ok(stats)
     }
+}
+
+/// `dst.copy_from_slice(src)` in chunks shared among the current rayon pool's threads (a
+/// copy: the same bits however the chunks are shared).
+fn copy_in_parallel(dst: &mut [Vec3], src: &[Vec3]) {
+    use rayon::prelude::*;
+    const CHUNK: usize = 4096;
+    dst.par_chunks_mut(CHUNK)
+        .zip(src.par_chunks(CHUNK))
+        .for_each(|(d, s)| d.copy_from_slice(s));
 }

@@ -598,18 +598,20 @@ pub(crate) fn sync(scratch: &mut GridScratch, position: &mut [Vec3], velocity: &
     if cols == 0 {
         return;
     }
-    for ((row, x), v) in scratch
+    // Rows in parallel (a copy: the same bits however they are shared out).
+    use rayon::prelude::*;
+    scratch
         .rows
-        .chunks_exact(6 * cols)
-        .zip(position.chunks_exact_mut(cols))
-        .zip(velocity.chunks_exact_mut(cols))
-    {
-        let [px, py, pz, vx, vy, vz] = row_parts(row, cols);
-        for c in 0..cols {
-            x[c] = Vec3::new(px[c], py[c], pz[c]);
-            v[c] = Vec3::new(vx[c], vy[c], vz[c]);
-        }
-    }
+        .par_chunks_exact(6 * cols)
+        .zip(position.par_chunks_exact_mut(cols))
+        .zip(velocity.par_chunks_exact_mut(cols))
+        .for_each(|((row, x), v)| {
+            let [px, py, pz, vx, vy, vz] = row_parts(row, cols);
+            for c in 0..cols {
+                x[c] = Vec3::new(px[c], py[c], pz[c]);
+                v[c] = Vec3::new(vx[c], vy[c], vz[c]);
+            }
+        });
 }
 
 /// After a substep that fell back to the reference path, the continuous-collision passes the
