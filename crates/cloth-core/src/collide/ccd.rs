@@ -13,7 +13,9 @@
 //!    the particle.
 //! 2. Cheap cull: every shape's signed distance `φ` is 1-Lipschitz, so the path cannot touch
 //!    the solid when `φ(a) + φ(b) ≥ |b − a|`, which already holds when `φ(b) ≥ |b − a|` (one
-//!    distance query). Nearly every particle stops here.
+//!    distance query). Nearly every particle stops here. For a sphere or a plane, a path that
+//!    ends too shallow inside for step 4 ever to correct it (a particle sliding over the
+//!    surface) stops here too, by a bound on `(b − p)·n` (`shallow`).
 //! 3. Conservative advancement (sphere tracing) along the path finds the first point where it
 //!    touches the solid surface, with the outward normal `n` there. It never steps past the
 //!    surface, because each step is at most the distance to it.
