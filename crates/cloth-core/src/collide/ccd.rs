@@ -87,6 +87,7 @@ pub(crate) fn resolve_in(
             Some(Quat::from_scaled_axis(col.angular_velocity * h))
         };
         let tau = tolerance(col);
+        let radius = curvature_radius(&col.shape);
         let (mu_s, mu_k) = (
             col.friction.static_coefficient,
             col.friction.kinetic_coefficient,
@@ -122,9 +123,7 @@ pub(crate) fn resolve_in(
             if db >= len {
                 continue;
             }
-            if let Some(radius) = curvature_radius(&col.shape)
-                && shallow(radius, tau, len, db)
-            {
+            if radius.is_some_and(|r| shallow(r, tau, len, db)) {
                 continue;
             }
             let Some((p, n)) = went_through(&col.shape, a, b, len, db, tau) else {

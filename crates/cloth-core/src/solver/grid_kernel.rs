@@ -43,6 +43,7 @@
 //! band waits for another and no sum depends on the partition or on scheduling.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::SubstepCtx;
 use super::placed::Placed;
@@ -599,7 +600,6 @@ pub(crate) fn sync(scratch: &mut GridScratch, position: &mut [Vec3], velocity: &
         return;
     }
     // Rows in parallel (a copy: the same bits however they are shared out).
-    use rayon::prelude::*;
     scratch
         .rows
         .par_chunks_exact(6 * cols)
