@@ -93,13 +93,13 @@ fn chunk_len(n: usize) -> usize {
 
 /// What [`measure`] gathers from one chunk.
 #[derive(Clone, Copy, Default)]
-struct Partial {
+pub(crate) struct Partial {
     /// Energy sums of the chunk, J.
-    energy: [f64; 2],
+    pub energy: [f64; 2],
     /// Deepest penetration or largest strain of the chunk.
-    max: f32,
+    pub max: f32,
     /// Index (within the pass) of the chunk's first bad particle or spring.
-    bad: Option<usize>,
+    pub bad: Option<usize>,
 }
 
 impl Partial {
@@ -124,14 +124,19 @@ impl Partial {
 ///
 /// Two passes, each over fixed chunks ([`chunk_len`]) in parallel with the partial
 /// results combined in chunk order (so the same bits for any thread count): the particles
-/// (energies, non-finite state, speed limit, penetration), then the springs kind by kind
-/// (elastic energy, strain, stretch limit). The instability reported is the first in that
-/// order: the lowest-numbered bad particle, else the first overstretched spring.
+/// (energies, non-finite state, speed limit, penetration), then the springs of every kind
+/// (elastic energy, strain, stretch limit; one parallel pass over the chunks of all kinds,
+/// folded kind by kind). On a grid cloth the springs' lengths are first computed row by row
+/// from contiguous slices into `lengths` ([`grid_lengths`]; the same bits as measuring them
+/// spring by spring); `lengths` is reused from call to call. The instability reported is the
+/// first in that order: the lowest-numbered bad particle, else the first overstretched
+/// spring.
 pub(crate) fn measure(
     config: &SimConfig,
     topology: &Topology,
     particles: &Particles,
     colliders: &[Collider],
+    lengths: &mut Vec<f32>,
 ) -> (StepStats, Option<Instability>) {
     use rayon::prelude::*;
     let mut stats = StepStats::default();
@@ -142,8 +147,7 @@ pub(crate) fn measure(
     };
     let max_speed_sq = config.limits.max_speed * config.limits.max_speed;
     let p = particles;
-    let bad_particle =
-        |x: Vec3, v: Vec3| !x.is_finite() || !v.is_finite() || v.length_squared() > max_speed_sq;
+    let kernel = crate::simd::kernel();
     let mut parts = [Partial::default(); MEASURE_CHUNKS];
     let len = chunk_len(p.len());
     let used = p.len().div_ceil(len);
@@ -155,23 +159,8 @@ pub(crate) fn measure(
         .zip(p.inv_mass.par_chunks(len))
         .enumerate()
         .for_each(|(chunk, ((((part, x), v), m), w))| {
-            for (k, ((&x, &v), &m)) in x.iter().zip(v).zip(m).enumerate() {
-                if part.bad.is_none() && bad_particle(x, v) {
-                    part.bad = Some(chunk * len + k);
-                }
-                let m = f64::from(m);
-                part.energy[0] += 0.5 * m * f64::from(v.length_squared());
-                part.energy[1] -= m * f64::from(g.dot(x));
-            }
-            for (&x, &w) in x.iter().zip(w) {
-                if w == 0.0 {
-                    continue;
-                }
-                for c in colliders {
-                    let (dist, _) = c.shape.distance(x);
-                    part.max = part.max.max(c.thickness - dist);
-                }
-            }
+            *part = crate::simd::particle_chunk(kernel, [x, v], [m, w], colliders, g, max_speed_sq);
+            part.bad = part.bad.map(|k| chunk * len + k);
         });
     let total = Partial::fold(parts[..used].iter().copied(), stats.max_penetration);
     [stats.kinetic_energy, stats.gravitational_energy] = total.energy;
@@ -194,35 +183,60 @@ pub(crate) fn measure(
             reason,
         }
     });
-    let kernel = crate::simd::kernel();
-    for kind in SpringKind::ALL {
-        let k = f64::from(if config.forces.springs {
+
+    // The springs: the lengths of a grid first (else measured spring by spring), then the
+    // chunks of every kind in one parallel pass (kind after kind, chunk after chunk).
+    let all = topology.springs();
+    let measured = grid_lengths(kernel, topology, &p.position, lengths);
+    let limit = config.limits.max_stretch_ratio;
+    let stiffness = |kind: SpringKind| {
+        f64::from(if config.forces.springs {
             config.material.params(kind).stiffness
         } else {
             0.0
+        })
+    };
+    // Per kind: its first spring in `all`, its chunk length and its first part.
+    let mut first_part = [0_usize; 5];
+    let mut spans = [(0_usize, 0_usize); 4];
+    let mut offset = 0;
+    for kind in SpringKind::ALL {
+        let count = topology.springs_of(kind).len();
+        let len = chunk_len(count);
+        spans[kind as usize] = (offset, len);
+        offset += count;
+        first_part[kind as usize + 1] = first_part[kind as usize] + count.div_ceil(len);
+    }
+    let mut parts = [Partial::default(); 4 * MEASURE_CHUNKS];
+    parts[..first_part[4]]
+        .par_iter_mut()
+        .enumerate()
+        .for_each(|(t, part)| {
+            let kind = (0..4).rfind(|&k| first_part[k] <= t).unwrap_or(0);
+            let kind = SpringKind::ALL[kind];
+            let (start, len) = spans[kind as usize];
+            let chunk = t - first_part[kind as usize];
+            let count = topology.springs_of(kind).len();
+            let range = start + chunk * len..start + ((chunk + 1) * len).min(count);
+            let (springs, k) = (&all[range.clone()], stiffness(kind));
+            let lanes = match measured {
+                true => crate::simd::length_lanes(kernel, &lengths[range], springs, k, limit),
+                false => crate::simd::spring_lanes(kernel, &p.position, springs, k, limit),
+            };
+            part.bad = lanes.bad.map(|j| chunk * len + j);
+            part.energy[0] = lanes.energy.into_iter().sum();
+            part.max = lanes.max.into_iter().fold(part.max, f32::max);
         });
+    for kind in SpringKind::ALL {
         let class = kind.class() as usize;
-        let limit = config.limits.max_stretch_ratio;
-        let springs = topology.springs_of(kind);
-        let mut parts = [Partial::default(); MEASURE_CHUNKS];
-        let len = chunk_len(springs.len());
-        let used = springs.len().div_ceil(len);
-        parts[..used]
-            .par_iter_mut()
-            .zip(springs.par_chunks(len))
-            .enumerate()
-            .for_each(|(chunk, (part, springs))| {
-                let lanes = crate::simd::spring_lanes(kernel, &p.position, springs, k, limit);
-                part.bad = lanes.bad.map(|j| chunk * len + j);
-                part.energy[0] = lanes.energy.into_iter().sum();
-                part.max = lanes.max.into_iter().fold(part.max, f32::max);
-            });
-        let total = Partial::fold(parts[..used].iter().copied(), stats.max_strain[class]);
+        let parts = &parts[first_part[kind as usize]..first_part[kind as usize + 1]];
+        let total = Partial::fold(parts.iter().copied(), stats.max_strain[class]);
         stats.spring_energy += total.energy[0];
         stats.max_strain[class] = total.max;
         if bad.is_none()
             && let Some(j) = total.bad
         {
+            let springs = topology.springs_of(kind);
             let s = springs[j];
             let len = p.position[s.a as usize].distance(p.position[s.b as usize]);
             bad = Some(Instability {
@@ -241,6 +255,77 @@ pub(crate) fn measure(
     (stats, bad)
 }
 
+/// One chunk of [`measure`]'s particle pass: the energies Σ ½m|v|² and −Σ m·g·x (in particle
+/// order, from zero), the first particle with a non-finite state or a speed above the limit,
+/// and the deepest penetration of a free particle into any collider (from 0; spheres and
+/// planes computed vectorised with the shapes' own operations, so the same values).
+#[inline(always)]
+pub(crate) fn particle_chunk(
+    [x, v]: [&[Vec3]; 2],
+    [m, w]: [&[f32]; 2],
+    colliders: &[Collider],
+    g: Vec3,
+    max_speed_sq: f32,
+) -> Partial {
+    use crate::collide::Shape;
+    let n = x.len();
+    let (v, m, w) = (&v[..n], &m[..n], &w[..n]);
+    let mut part = Partial::default();
+    let bad_particle =
+        |x: Vec3, v: Vec3| !x.is_finite() || !v.is_finite() || v.length_squared() > max_speed_sq;
+    let mut any_bad = false;
+    for i in 0..n {
+        let (x, v) = (x[i], v[i]);
+        let speed_sq = v.length_squared();
+        any_bad |= !x.is_finite() | !v.is_finite() | (speed_sq > max_speed_sq);
+        let m = f64::from(m[i]);
+        part.energy[0] += 0.5 * m * f64::from(speed_sq);
+        part.energy[1] -= m * f64::from(g.dot(x));
+    }
+    if any_bad {
+        part.bad = (0..n).position(|i| bad_particle(x[i], v[i]));
+    }
+    // Penetration, collider by collider: lanes of maxima over chunks of particles.
+    const L: usize = 16;
+    let (xc, xt) = x.as_chunks::<L>();
+    let (wc, wt) = w.as_chunks::<L>();
+    for c in colliders {
+        let t = c.thickness;
+        let (sphere, a, r, normal) = match c.shape {
+            Shape::Sphere { center, radius } => (true, center, radius, Vec3::Y),
+            Shape::Plane { point, normal } => (false, point, 0.0, normal),
+            _ => {
+                for (&x, &w) in x.iter().zip(w) {
+                    if w != 0.0 {
+                        part.max = part.max.max(t - c.shape.distance(x).0);
+                    }
+                }
+                continue;
+            }
+        };
+        let depth = |x: Vec3, w: f32| {
+            let (dist, _) =
+                crate::solver::grid_kernel::lane_distance(sphere, a, r, normal, x.to_array());
+            if w != 0.0 {
+                t - dist
+            } else {
+                f32::NEG_INFINITY
+            }
+        };
+        let mut lanes = [f32::NEG_INFINITY; L];
+        for (xs, ws) in xc.iter().zip(wc) {
+            for j in 0..L {
+                lanes[j] = lanes[j].max(depth(xs[j], ws[j]));
+            }
+        }
+        for (&x, &w) in xt.iter().zip(wt) {
+            part.max = part.max.max(depth(x, w));
+        }
+        part.max = lanes.into_iter().fold(part.max, f32::max);
+    }
+    part
+}
+
 /// Lanes of [`spring_lanes`]: spring `j` of a run adds to lane `j mod SPRING_LANES`.
 pub(crate) const SPRING_LANES: usize = 8;
 
@@ -252,6 +337,14 @@ pub(crate) struct SpringLanes {
     pub max: [f32; SPRING_LANES],
     /// Index in the run of the first spring longer than `limit` times its rest length.
     pub bad: Option<usize>,
+}
+
+/// A spring's length as the diagnostics measure it: `a − b`, then `(x² + y² + z²)`'s square
+/// root (glam's `distance`, unfused).
+#[inline(always)]
+fn spring_length(a: Vec3, b: Vec3) -> f32 {
+    let d = a - b;
+    (d.x * d.x + d.y * d.y + d.z * d.z).sqrt()
 }
 
 /// The springs' energies, strains and stretch check in [`SPRING_LANES`] lanes: independent
@@ -266,6 +359,57 @@ pub(crate) fn spring_lanes(
     k: f64,
     limit: f32,
 ) -> SpringLanes {
+    lanes_of(
+        springs,
+        k,
+        limit,
+        |_, group| {
+            let mut d = [[0.0_f32; SPRING_LANES]; 3];
+            for (l, s) in group.iter().enumerate() {
+                let v = position[s.a as usize] - position[s.b as usize];
+                [d[0][l], d[1][l], d[2][l]] = v.to_array();
+            }
+            std::array::from_fn(|l| {
+                (d[0][l] * d[0][l] + d[1][l] * d[1][l] + d[2][l] * d[2][l]).sqrt()
+            })
+        },
+        |_, s| position[s.a as usize].distance(position[s.b as usize]),
+    )
+}
+
+/// [`spring_lanes`] with the lengths already measured (`lengths[j]` of `springs[j]`, by
+/// [`grid_lengths`]): the same bits.
+#[inline(always)]
+pub(crate) fn length_lanes(
+    lengths: &[f32],
+    springs: &[crate::topology::Spring],
+    k: f64,
+    limit: f32,
+) -> SpringLanes {
+    let lengths = &lengths[..springs.len()];
+    lanes_of(
+        springs,
+        k,
+        limit,
+        |g, _| {
+            *lengths[g * SPRING_LANES..]
+                .first_chunk::<SPRING_LANES>()
+                .expect("a whole group")
+        },
+        |j, _| lengths[j],
+    )
+}
+
+/// The lanes of a run of springs whose lengths come from `group` (the lengths of group `g`,
+/// the springs `8g .. 8g + 8`) and `one` (the length of spring `j`).
+#[inline(always)]
+fn lanes_of(
+    springs: &[crate::topology::Spring],
+    k: f64,
+    limit: f32,
+    group: impl Fn(usize, &[crate::topology::Spring; SPRING_LANES]) -> [f32; SPRING_LANES],
+    one: impl Fn(usize, &crate::topology::Spring) -> f32,
+) -> SpringLanes {
     const L: usize = SPRING_LANES;
     let mut out = SpringLanes {
         energy: [0.0; L],
@@ -278,37 +422,194 @@ pub(crate) fn spring_lanes(
         out.energy[l] += 0.5 * k * f64::from(stretch) * f64::from(stretch);
         out.max[l] = out.max[l].max(stretch / rest);
     };
-    let first_bad = |springs: &[crate::topology::Spring]| {
-        springs.iter().position(|s| {
-            position[s.a as usize].distance(position[s.b as usize]) > limit * s.rest_length
-        })
+    let first_bad = |from: usize, springs: &[crate::topology::Spring]| {
+        springs
+            .iter()
+            .enumerate()
+            .position(|(j, s)| one(from + j, s) > limit * s.rest_length)
     };
     let (groups, tail) = springs.as_chunks::<L>();
-    for (g, group) in groups.iter().enumerate() {
-        let (mut d, mut rest) = ([[0.0_f32; L]; 3], [0.0_f32; L]);
-        for (l, s) in group.iter().enumerate() {
-            let v = position[s.a as usize] - position[s.b as usize];
-            [d[0][l], d[1][l], d[2][l]] = v.to_array();
+    for (g, springs) in groups.iter().enumerate() {
+        let length = group(g, springs);
+        let mut rest = [0.0_f32; L];
+        for (l, s) in springs.iter().enumerate() {
             rest[l] = s.rest_length;
         }
         let mut over = false;
         for l in 0..L {
-            let length = (d[0][l] * d[0][l] + d[1][l] * d[1][l] + d[2][l] * d[2][l]).sqrt();
-            add(&mut out, l, length, rest[l]);
-            over |= length > limit * rest[l];
+            add(&mut out, l, length[l], rest[l]);
+            over |= length[l] > limit * rest[l];
         }
         if over && out.bad.is_none() {
-            out.bad = first_bad(group).map(|j| g * L + j);
+            out.bad = first_bad(g * L, springs).map(|j| g * L + j);
         }
     }
+    let from = groups.len() * L;
     for (l, s) in tail.iter().enumerate() {
-        let length = position[s.a as usize].distance(position[s.b as usize]);
-        add(&mut out, l, length, s.rest_length);
+        add(&mut out, l, one(from + l, s), s.rest_length);
     }
     if out.bad.is_none() {
-        out.bad = first_bad(tail).map(|j| groups.len() * L + j);
+        out.bad = first_bad(from, tail).map(|j| from + j);
     }
     out
+}
+
+/// Per kind (in [`SpringKind::ALL`] order), the index of the first spring whose first end
+/// lies in grid row `r` (`0 ..= rows`), for the builder's order ([`crate::GridBuilder`]):
+/// row by row, and in a row slot by slot, warp `(r, c)–(r+1, c)`, weft `(r, c)–(r, c+1)`, the
+/// two shear diagonals `(r, c)–(r+1, c+1)` and `(r, c+1)–(r+1, c)`, the bends
+/// `(r, c)–(r+2, c)` and `(r, c)–(r, c+2)`, each where it exists.
+fn grid_row_starts(rows: usize, cols: usize, r: usize) -> [usize; 4] {
+    let h = cols.saturating_sub(2);
+    let below = r.min(rows.saturating_sub(2));
+    [
+        r.min(rows - 1) * cols,
+        r * (cols - 1),
+        r.min(rows - 1) * 2 * (cols - 1),
+        below * (cols + h) + (r - below) * h,
+    ]
+}
+
+/// Rows of a grid cloth per task of [`grid_lengths`]: about 4096 springs.
+fn grid_rows_per_task(cols: usize) -> usize {
+    (MEASURE_CHUNK / (6 * cols)).max(1)
+}
+
+/// The lengths of every spring of a grid cloth (built by [`crate::GridBuilder`], see
+/// [`Topology::grid`]) into `lengths`, in the topology's order, computed row by row from
+/// contiguous slices of the positions (tasks of [`grid_rows_per_task`] rows in parallel;
+/// each length is [`spring_length`], so the same bits as measuring spring by spring).
+/// Returns `false` (and leaves `lengths` alone) for any other topology.
+fn grid_lengths(
+    kernel: crate::simd::Kernel,
+    topology: &Topology,
+    position: &[Vec3],
+    lengths: &mut Vec<f32>,
+) -> bool {
+    let Some((rows, cols)) = topology.grid() else {
+        return false;
+    };
+    if rows < 2 || cols < 2 || rows * cols != position.len() {
+        return false;
+    }
+    let ends = grid_row_starts(rows, cols, rows);
+    if SpringKind::ALL
+        .iter()
+        .any(|&k| topology.springs_of(k).len() != ends[k as usize])
+    {
+        return false;
+    }
+    lengths.resize(topology.springs().len(), 0.0);
+    let (warp, rest) = lengths.split_at_mut(ends[0]);
+    let (weft, rest) = rest.split_at_mut(ends[1]);
+    let (shear, bend) = rest.split_at_mut(ends[2]);
+    grid_length_rows(
+        kernel,
+        position,
+        [rows, cols],
+        0..rows,
+        [warp, weft, shear, bend],
+    );
+    true
+}
+
+/// Rows `rows.start .. rows.end` of [`grid_lengths`] into `out` (those rows' springs of each
+/// kind): halves on both sides of a `rayon::join` down to tasks of [`grid_rows_per_task`].
+fn grid_length_rows(
+    kernel: crate::simd::Kernel,
+    position: &[Vec3],
+    [rows, cols]: [usize; 2],
+    range: std::ops::Range<usize>,
+    out: [&mut [f32]; 4],
+) {
+    if range.len() <= grid_rows_per_task(cols) {
+        crate::simd::grid_row_lengths(kernel, position, [rows, cols], range, out);
+        return;
+    }
+    let mid = range.start + range.len() / 2;
+    let (a, b) = (
+        grid_row_starts(rows, cols, range.start),
+        grid_row_starts(rows, cols, mid),
+    );
+    let [w, f, s, b_] = out;
+    let (w0, w1) = w.split_at_mut(b[0] - a[0]);
+    let (f0, f1) = f.split_at_mut(b[1] - a[1]);
+    let (s0, s1) = s.split_at_mut(b[2] - a[2]);
+    let (b0, b1) = b_.split_at_mut(b[3] - a[3]);
+    rayon::join(
+        || {
+            grid_length_rows(
+                kernel,
+                position,
+                [rows, cols],
+                range.start..mid,
+                [w0, f0, s0, b0],
+            );
+        },
+        || {
+            grid_length_rows(
+                kernel,
+                position,
+                [rows, cols],
+                mid..range.end,
+                [w1, f1, s1, b1],
+            );
+        },
+    );
+}
+
+/// The springs of grid rows `range` (see [`grid_row_starts`]) measured into `out` (those
+/// rows' springs of each kind, in order). Generic code, compiled once per instruction set by
+/// [`crate::simd`].
+#[inline(always)]
+pub(crate) fn grid_row_lengths(
+    position: &[Vec3],
+    [rows, cols]: [usize; 2],
+    range: std::ops::Range<usize>,
+    out: [&mut [f32]; 4],
+) {
+    let [mut warp, mut weft, mut shear, mut bend] = out;
+    let h = cols - 2;
+    for r in range {
+        let row = &position[r * cols..][..cols];
+        if r + 1 < rows {
+            let next = &position[(r + 1) * cols..][..cols];
+            let (w, rest) = warp.split_at_mut(cols);
+            for c in 0..cols {
+                w[c] = spring_length(row[c], next[c]);
+            }
+            warp = rest;
+            let (s, rest) = shear.split_at_mut(2 * (cols - 1));
+            for c in 0..cols - 1 {
+                s[2 * c] = spring_length(row[c], next[c + 1]);
+                s[2 * c + 1] = spring_length(row[c + 1], next[c]);
+            }
+            shear = rest;
+        }
+        let (f, rest) = weft.split_at_mut(cols - 1);
+        for c in 0..cols - 1 {
+            f[c] = spring_length(row[c], row[c + 1]);
+        }
+        weft = rest;
+        if r + 2 < rows {
+            let next2 = &position[(r + 2) * cols..][..cols];
+            let (b, rest) = bend.split_at_mut(cols + h);
+            for c in 0..h {
+                b[2 * c] = spring_length(row[c], next2[c]);
+                b[2 * c + 1] = spring_length(row[c], row[c + 2]);
+            }
+            for c in h..cols {
+                b[h + c] = spring_length(row[c], next2[c]);
+            }
+            bend = rest;
+        } else {
+            let (b, rest) = bend.split_at_mut(h);
+            for c in 0..h {
+                b[c] = spring_length(row[c], row[c + 2]);
+            }
+            bend = rest;
+        }
+    }
 }
 
 /// Quantiles of the stretch strain (|L| − L0)/L0 over every spring of `class` at `position`
@@ -417,6 +718,65 @@ pub(crate) fn instability_hint(config: &SimConfig, min_mass: f32) -> String {
 mod tests {
     use super::*;
     use crate::topology::Spring;
+
+    /// Law: a spring's length is |a − b| whoever measures it. The grid pass (row by row,
+    /// from contiguous slices) gives exactly the bits of measuring each spring through its
+    /// indices (`Spring::a`, `Spring::b`), on every kernel, for grids from 2 × 2 up (the
+    /// edges: no bends across 2 rows or 2 columns, one row of bends at the far side), and
+    /// the whole measure then gives the same stats, bit for bit, as the spring-by-spring
+    /// pass. Tolerance: 0 (bit-identical).
+    #[test]
+    fn grid_lengths_are_the_spring_by_spring_lengths() {
+        use crate::GridBuilder;
+        for (rows, cols) in [(2, 2), (2, 5), (5, 2), (3, 3), (3, 4), (7, 13), (40, 33)] {
+            let cloth = GridBuilder::new(rows, cols)
+                .spacing(0.1, 0.07)
+                .build()
+                .expect("a valid grid");
+            let topology = &cloth.topology;
+            // A wrinkled state: every spring a different length.
+            let position: Vec<Vec3> = cloth
+                .particles
+                .position
+                .iter()
+                .enumerate()
+                .map(|(i, &p)| {
+                    let t = i as f32;
+                    p + 0.01 * Vec3::new((t * 1.3).sin(), (t * 0.7).cos(), (t * 2.9).sin())
+                })
+                .collect();
+            let expected: Vec<u32> = topology
+                .springs()
+                .iter()
+                .map(|s| {
+                    position[s.a as usize]
+                        .distance(position[s.b as usize])
+                        .to_bits()
+                })
+                .collect();
+            for kernel in crate::simd::Kernel::ALL {
+                if !kernel.is_available() {
+                    continue;
+                }
+                let mut lengths = vec![f32::NAN; 3];
+                assert!(grid_lengths(kernel, topology, &position, &mut lengths));
+                let got: Vec<u32> = lengths.iter().map(|l| l.to_bits()).collect();
+                assert_eq!(got, expected, "{rows} x {cols}, {kernel:?}");
+            }
+            // The whole measure: the grid pass against the same springs without the grid.
+            let config = SimConfig::default();
+            let mut particles = cloth.particles.clone();
+            particles.position = position;
+            let plain = Topology::new(
+                SpringKind::ALL.map(|k| topology.springs_of(k).to_vec()),
+                topology.triangles().to_vec(),
+            );
+            let (a, _) = measure(&config, topology, &particles, &[], &mut Vec::new());
+            let (b, _) = measure(&config, &plain, &particles, &[], &mut Vec::new());
+            assert_eq!(a, b, "{rows} x {cols}");
+            assert_eq!(a.spring_energy.to_bits(), b.spring_energy.to_bits());
+        }
+    }
 
     /// `spring_lanes` against the plain sequential loop it replaced, on 8·5 + 3 springs (a
     /// tail): the same maximum strain and first overstretched spring (exact), the same energy

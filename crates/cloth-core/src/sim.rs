@@ -55,6 +55,8 @@ pub struct Simulation {
     backup_position: Vec<Vec3>,
     backup_velocity: Vec<Vec3>,
     backup_colliders: Vec<Collider>,
+    /// The diagnostics' spring lengths of a grid cloth (reused from step to step).
+    measure_lengths: Vec<f32>,
     time: f64,
     steps: u64,
     stats: StepStats,
@@ -230,6 +232,7 @@ impl Simulation {
             backup_position: Vec::with_capacity(n),
             backup_velocity: Vec::with_capacity(n),
             backup_colliders: Vec::new(),
+            measure_lengths: Vec::new(),
             time: 0.0,
             steps: 0,
             stats: StepStats::default(),
@@ -341,6 +344,7 @@ impl Simulation {
             &self.topology,
             &self.particles,
             &self.colliders,
+            &mut Vec::new(),
         );
         stats.step = self.steps;
         stats.time = self.time;
@@ -530,8 +534,11 @@ impl Simulation {
             &mut self.particles,
             &self.pin_target,
         );
-        let (backup_position, backup_velocity) =
-            (&mut self.backup_position, &mut self.backup_velocity);
+        let (backup_position, backup_velocity, measure_lengths) = (
+            &mut self.backup_position,
+            &mut self.backup_velocity,
+            &mut self.measure_lengths,
+        );
         // Stages 1 to 5 with the pool's threads kept awake: the copies and the diagnostics'
         // parallel passes then start at once instead of waking a sleeping thread for each.
         let (mut stats, bad) = crate::solver::with_pool_awake(|| {
@@ -586,7 +593,7 @@ impl Simulation {
             }
 
             // 5. diagnostics and instability check
-            measure(config, topology, particles, colliders)
+            measure(config, topology, particles, colliders, measure_lengths)
         });
         if let Some(bad) = bad {
             self.particles.position.clone_from(&self.backup_position);

@@ -522,6 +522,147 @@ fn spring_lanes_avx512(
     crate::diagnostics::spring_lanes(position, springs, k, limit)
 }
 
+/// The diagnostics' spring pass with the lengths already measured
+/// ([`crate::diagnostics::length_lanes`]; the same bits on every kernel).
+pub(crate) fn length_lanes(
+    kernel: Kernel,
+    lengths: &[f32],
+    springs: &[crate::topology::Spring],
+    k: f64,
+    limit: f32,
+) -> crate::diagnostics::SpringLanes {
+    match kernel {
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx512 if Kernel::Avx512.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { length_lanes_avx512(lengths, springs, k, limit) }
+        }
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 if Kernel::Avx2.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { length_lanes_avx2(lengths, springs, k, limit) }
+        }
+        _ => crate::diagnostics::length_lanes(lengths, springs, k, limit),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn length_lanes_avx2(
+    lengths: &[f32],
+    springs: &[crate::topology::Spring],
+    k: f64,
+    limit: f32,
+) -> crate::diagnostics::SpringLanes {
+    crate::diagnostics::length_lanes(lengths, springs, k, limit)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+fn length_lanes_avx512(
+    lengths: &[f32],
+    springs: &[crate::topology::Spring],
+    k: f64,
+    limit: f32,
+) -> crate::diagnostics::SpringLanes {
+    crate::diagnostics::length_lanes(lengths, springs, k, limit)
+}
+
+/// The diagnostics' spring lengths of some rows of a grid cloth
+/// ([`crate::diagnostics::grid_row_lengths`]; the same bits on every kernel).
+pub(crate) fn grid_row_lengths(
+    kernel: Kernel,
+    position: &[glam::Vec3],
+    shape: [usize; 2],
+    rows: std::ops::Range<usize>,
+    out: [&mut [f32]; 4],
+) {
+    match kernel {
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx512 if Kernel::Avx512.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { grid_row_lengths_avx512(position, shape, rows, out) }
+        }
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 if Kernel::Avx2.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { grid_row_lengths_avx2(position, shape, rows, out) }
+        }
+        _ => crate::diagnostics::grid_row_lengths(position, shape, rows, out),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn grid_row_lengths_avx2(
+    position: &[glam::Vec3],
+    shape: [usize; 2],
+    rows: std::ops::Range<usize>,
+    out: [&mut [f32]; 4],
+) {
+    crate::diagnostics::grid_row_lengths(position, shape, rows, out);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+fn grid_row_lengths_avx512(
+    position: &[glam::Vec3],
+    shape: [usize; 2],
+    rows: std::ops::Range<usize>,
+    out: [&mut [f32]; 4],
+) {
+    crate::diagnostics::grid_row_lengths(position, shape, rows, out);
+}
+
+/// One chunk of the diagnostics' particle pass ([`crate::diagnostics::particle_chunk`]; the
+/// same bits on every kernel).
+pub(crate) fn particle_chunk(
+    kernel: Kernel,
+    state: [&[glam::Vec3]; 2],
+    mass: [&[f32]; 2],
+    colliders: &[crate::collide::Collider],
+    g: glam::Vec3,
+    max_speed_sq: f32,
+) -> crate::diagnostics::Partial {
+    match kernel {
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx512 if Kernel::Avx512.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { particle_chunk_avx512(state, mass, colliders, g, max_speed_sq) }
+        }
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 if Kernel::Avx2.is_available() => {
+            // SAFETY: the CPU has every feature (checked on the line above).
+            unsafe { particle_chunk_avx2(state, mass, colliders, g, max_speed_sq) }
+        }
+        _ => crate::diagnostics::particle_chunk(state, mass, colliders, g, max_speed_sq),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn particle_chunk_avx2(
+    state: [&[glam::Vec3]; 2],
+    mass: [&[f32]; 2],
+    colliders: &[crate::collide::Collider],
+    g: glam::Vec3,
+    max_speed_sq: f32,
+) -> crate::diagnostics::Partial {
+    crate::diagnostics::particle_chunk(state, mass, colliders, g, max_speed_sq)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+fn particle_chunk_avx512(
+    state: [&[glam::Vec3]; 2],
+    mass: [&[f32]; 2],
+    colliders: &[crate::collide::Collider],
+    g: glam::Vec3,
+    max_speed_sq: f32,
+) -> crate::diagnostics::Partial {
+    crate::diagnostics::particle_chunk(state, mass, colliders, g, max_speed_sq)
+}
+
 /// XPBD's contacts of a run of particles with colliders that are all spheres or planes that
 /// do not turn, on the arrays ([`grid_xpbd::contacts_soa_row`]: the pre-test and the exact
 /// kernel; the same bits on every kernel). Returns the contact count.
