@@ -40,6 +40,8 @@ pub(crate) struct XpbdScratch {
     tethers: Vec<Tether>,
     /// The pinned set the tethers were built for.
     tether_key: Vec<u32>,
+    /// Whether `tethers` were built (for `tether_key`; none when nothing is pinned).
+    tethers_built: bool,
     /// Multi-resolution strain limits of the reference path: `(a, b, largest distance)`.
     limits: Vec<Tether>,
     /// `(levels, slack bits, particles)` the limits were built for.
@@ -64,9 +66,16 @@ impl XpbdScratch {
             .enumerate()
             .filter(|&(_, &w)| w == 0.0)
             .map(|(i, _)| i as u32);
-        if self.tether_key.iter().copied().eq(pinned.clone()) && !self.tethers.is_empty() {
+        // The pinned set is compared only when its size is unchanged (a count the compiler
+        // vectorises; most cloths keep their pins, and many have none).
+        let count = p.inv_mass.iter().filter(|&&w| w == 0.0).count();
+        if self.tethers_built
+            && count == self.tether_key.len()
+            && (count == 0 || self.tether_key.iter().copied().eq(pinned.clone()))
+        {
             return;
         }
+        self.tethers_built = true;
         self.tether_key.clear();
         self.tether_key.extend(pinned);
         self.tethers.clear();
