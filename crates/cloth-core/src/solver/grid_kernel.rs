@@ -143,6 +143,88 @@ pub(crate) struct GridScratch {
     plus_zero: Vec<f32>,
     minus_zero: Vec<f32>,
     bands: Vec<Band>,
+    /// Where the bands' boundaries sit.
+    balance: Balance,
+}
+
+/// The bands' boundaries, moved from substep to substep so that the bands finish together: a
+/// band that finished later than its neighbour (more contacts, or started later by the thread
+/// that took it) gives up a row to it. Results never depend on where the boundaries sit (every
+/// row is computed the same way in any band); the balance only decides who computes what.
+#[derive(Debug, Default, Clone)]
+struct Balance {
+    /// `(rows, bands)` the shifts are for.
+    key: (usize, usize),
+    /// Rows moved across each boundary from [`band_start`]'s split (positive: the band above
+    /// gets more rows).
+    shift: Vec<isize>,
+    /// How far, in rows of work, the band below each boundary finished after the band above
+    /// (smoothed over substeps).
+    lead: Vec<f32>,
+    /// The first row of every band, then the number of rows (`bands + 1` entries).
+    starts: Vec<usize>,
+}
+
+impl Balance {
+    /// Fewest rows of a band moved by the balance.
+    const MIN_ROWS: usize = 4;
+
+    /// Starts from [`band_start`]'s split when the rows or the bands changed.
+    fn prepare(&mut self, rows: usize, bands: usize) {
+        if self.key == (rows, bands) && self.starts.len() == bands + 1 {
+            return;
+        }
+        self.key = (rows, bands);
+        self.shift.clear();
+        self.shift.resize(bands.saturating_sub(1), 0);
+        self.lead.clear();
+        self.lead.resize(bands.saturating_sub(1), 0.0);
+        self.place();
+    }
+
+    /// The starts from the split and the shifts (each band keeps at least `MIN_ROWS` rows
+    /// where the split gave it that many, and never fewer than one).
+    fn place(&mut self) {
+        let (rows, bands) = self.key;
+        self.starts.clear();
+        self.starts
+            .extend((0..=bands).map(|i| band_start(i, bands, rows)));
+        for i in 1..bands {
+            let base = self.starts[i];
+            let lo = self.starts[i - 1] + Self::MIN_ROWS.min(base - self.starts[i - 1]);
+            let next = self.starts[i + 1];
+            let hi = next - Self::MIN_ROWS.min(next - base);
+            let placed = base.saturating_add_signed(self.shift[i - 1]).clamp(lo, hi);
+            self.shift[i - 1] = placed as isize - base as isize;
+            self.starts[i] = placed;
+        }
+    }
+
+    /// After a substep: `time(i)` is when band `i` started and finished (any common origin).
+    /// A boundary moves by one row when the band below it has led the band above by more than
+    /// a row's work (smoothed), and the other way round.
+    fn update(&mut self, time: impl Fn(usize) -> [f32; 2]) {
+        let bands = self.key.1;
+        let mut moved = false;
+        for i in 0..bands.saturating_sub(1) {
+            let ([a0, a1], [b0, b1]) = (time(i), time(i + 1));
+            let rows = (self.starts[i + 2] - self.starts[i]) as f32;
+            let row = ((a1 - a0) + (b1 - b0)) / rows;
+            if !(row > 0.0) {
+                continue;
+            }
+            let lead = &mut self.lead[i];
+            *lead = 0.75 * *lead + 0.25 * ((b1 - a1) / row);
+            if lead.abs() > 1.0 {
+                self.shift[i] += if *lead > 0.0 { 1 } else { -1 };
+                *lead = 0.0;
+                moved = true;
+            }
+        }
+        if moved {
+            self.place();
+        }
+    }
 }
 
 /// Ring buffers of one band.
@@ -167,6 +249,8 @@ pub(crate) struct Band {
     px: Vec<Vec3>,
     pv: Vec<Vec3>,
     start: Vec<Vec3>,
+    /// When the band last started and finished, µs from its substep's start.
+    time: [f32; 2],
 }
 
 impl Band {
@@ -511,8 +595,13 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
             0.0
         },
     };
+    scratch.balance.prepare(rows, bands);
+    let clock = std::time::Instant::now();
     let run = |r0: usize, r1: usize, band: &mut Band, dest: Dest<'_>| {
-        simd::run_band(plan.kernel, &job, r0, r1, band, dest)
+        let begin = clock.elapsed();
+        let result = simd::run_band(plan.kernel, &job, r0, r1, band, dest);
+        band.time = [begin, clock.elapsed()].map(|t| t.as_secs_f32() * 1e6);
+        result
     };
     let dest = if plan.persist {
         Dest::Rows(&mut scratch.next_rows)
@@ -522,9 +611,14 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
     let result = run_bands(
         &run,
         &mut scratch.bands[..bands],
-        [0, bands, rows, cols],
+        &scratch.balance.starts,
+        cols,
         dest,
     );
+    if bands > 1 {
+        let band = &scratch.bands;
+        scratch.balance.update(|i| band[i].time);
+    }
     if result.degenerate {
         return false;
     }
@@ -564,26 +658,27 @@ fn band_start(i: usize, bands: usize, rows: usize) -> usize {
     ((i * total + bands / 2 - (i - 1) * HALO * bands) / bands).min(rows)
 }
 
-/// Runs bands `first ..` (the slice `bands`) of `total` over a grid of `rows` rows, writing
-/// into `dest` (those bands' rows only): halves on both sides of a `rayon::join`, one band
-/// per leaf. (A `join` tree, not a parallel iterator over the bands: the iterator's splitting
-/// and reduction cost ≈ 6 % of the peer scene's time on 2 threads, for the same work.)
+/// Runs `bands` (band `i` from row `starts[i]` to `starts[i + 1]`) over a grid of `cols`
+/// columns, writing into `dest` (those bands' rows only): halves on both sides of a
+/// `rayon::join`, one band per leaf. (A `join` tree, not a parallel iterator over the bands:
+/// the iterator's splitting and reduction cost ≈ 6 % of the peer scene's time on 2 threads,
+/// for the same work.)
 fn run_bands(
     run: &(impl Fn(usize, usize, &mut Band, Dest<'_>) -> BandResult + Sync),
     bands: &mut [Band],
-    [first, total, rows, cols]: [usize; 4],
+    starts: &[usize],
+    cols: usize,
     dest: Dest<'_>,
 ) -> BandResult {
-    let start = |i: usize| band_start(i, total, rows);
     if let [band] = bands {
-        return run(start(first), start(first + 1), band, dest);
+        return run(starts[0], starts[1], band, dest);
     }
     let half = bands.len() / 2;
     let (lo, hi) = bands.split_at_mut(half);
-    let (d_lo, d_hi) = dest.split((start(first + half) - start(first)) * cols);
+    let (d_lo, d_hi) = dest.split((starts[half] - starts[0]) * cols);
     let (a, b) = rayon::join(
-        || run_bands(run, lo, [first, total, rows, cols], d_lo),
-        || run_bands(run, hi, [first + half, total, rows, cols], d_hi),
+        || run_bands(run, lo, &starts[..=half], cols, d_lo),
+        || run_bands(run, hi, &starts[half..], cols, d_hi),
     );
     a.merge(b)
 }
@@ -1671,7 +1766,43 @@ pub(crate) fn run(
 
 #[cfg(test)]
 mod tests {
-    use super::band_start;
+    use super::{Balance, band_start};
+
+    /// The balance moves a boundary towards the band that finished first until the bands
+    /// finish within a row's work of each other (a lower band whose rows cost 10 % more and
+    /// that starts 0.6 µs late ends up with fewer rows), never leaves a band with fewer than
+    /// `MIN_ROWS` rows, and starts over from the plain split for a new size. (Results do not
+    /// depend on the boundaries: the thread-count tests compare the bits.)
+    #[test]
+    fn the_balance_moves_rows_to_the_band_that_finishes_first() {
+        // Two bands over 128 rows; rows of the lower band cost 1.1 µs, of the upper 1.0 µs,
+        // and the lower band starts 0.6 µs late (the thread that steals it).
+        let mut b = Balance::default();
+        b.prepare(128, 2);
+        assert_eq!(b.starts, [0, 65, 128]);
+        let ends = |starts: &[usize]| {
+            let (r0, r1) = (starts[1] as f32, (starts[2] - starts[1]) as f32);
+            [[0.0, r0], [0.6, 0.6 + 1.1 * r1]]
+        };
+        for _ in 0..200 {
+            let t = ends(&b.starts);
+            b.update(|i| t[i]);
+            assert!(b.starts[1] > Balance::MIN_ROWS && b.starts[1] < 128 - Balance::MIN_ROWS);
+        }
+        // Balanced: 1.0·r0 = 0.6 + 1.1·(128 − r0) at r0 ≈ 67.3; within a row of the work.
+        let t = ends(&b.starts);
+        assert!((t[1][1] - t[0][1]).abs() <= 1.1, "{:?} {t:?}", b.starts);
+        // Extreme costs keep every band at least MIN_ROWS rows; new sizes start over.
+        for _ in 0..500 {
+            b.update(|i| [[0.0, 1.0], [0.0, 1000.0]][i]);
+        }
+        assert_eq!(b.starts, [0, 128 - Balance::MIN_ROWS, 128]);
+        b.prepare(40, 3);
+        assert_eq!(
+            b.starts,
+            (0..=3).map(|i| band_start(i, 3, 40)).collect::<Vec<_>>()
+        );
+    }
 
     /// The bands tile the rows: starts from 0 to `rows`, strictly increasing (every band at
     /// least one row), the first band at most a few rows longer than the others, for every
