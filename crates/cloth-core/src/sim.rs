@@ -545,15 +545,22 @@ impl Simulation {
             copy_in_parallel(backup_position, &particles.position);
             copy_in_parallel(backup_velocity, &particles.velocity);
 
-            // 2. pins
-            for (i, target) in pin_target.iter().enumerate() {
-                if particles.inv_mass[i] != 0.0 {
-                    continue;
+            // 2. pins (stages 2 and 4 touch only pinned particles: skipped when there are
+            //    none, which one vectorised pass over the inverse masses tells)
+            let any_pinned = particles
+                .inv_mass
+                .iter()
+                .fold(false, |a, &w| a | (w == 0.0));
+            if any_pinned {
+                for (i, target) in pin_target.iter().enumerate() {
+                    if particles.inv_mass[i] != 0.0 {
+                        continue;
+                    }
+                    particles.velocity[i] = match target {
+                        Some(t) => (*t - particles.position[i]) / dt,
+                        None => Vec3::ZERO,
+                    };
                 }
-                particles.velocity[i] = match target {
-                    Some(t) => (*t - particles.position[i]) / dt,
-                    None => Vec3::ZERO,
-                };
             }
 
             // 3. substeps
@@ -581,14 +588,16 @@ impl Simulation {
 
             // 4. pins (the targets are cleared only once the step is accepted, so that a
             //    failed step leaves them set, like the rest of the state)
-            for (i, target) in pin_target.iter().enumerate() {
-                if let Some(t) = *target {
-                    if particles.inv_mass[i] == 0.0 {
-                        particles.position[i] = t;
+            if any_pinned {
+                for (i, target) in pin_target.iter().enumerate() {
+                    if let Some(t) = *target {
+                        if particles.inv_mass[i] == 0.0 {
+                            particles.position[i] = t;
+                            particles.velocity[i] = Vec3::ZERO;
+                        }
+                    } else if particles.inv_mass[i] == 0.0 {
                         particles.velocity[i] = Vec3::ZERO;
                     }
-                } else if particles.inv_mass[i] == 0.0 {
-                    particles.velocity[i] = Vec3::ZERO;
                 }
             }
 
