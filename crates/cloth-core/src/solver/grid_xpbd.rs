@@ -187,7 +187,7 @@ pub(crate) struct XpbdGrid {
 pub(crate) fn applies(config: &SimConfig, topology: &Topology, inv_mass: &[f32]) -> bool {
     topology.grid().is_some()
         && config.self_collision.is_none()
-        && !(config.xpbd.tethers && inv_mass.contains(&0.0))
+        && !(config.xpbd.tethers && inv_mass.iter().fold(false, |a, &w| a | (w == 0.0)))
 }
 
 impl XpbdGrid {
@@ -301,14 +301,15 @@ impl XpbdGrid {
         if self.resident {
             return;
         }
-        scatter(&p.position, &mut self.pos);
-        scatter(&p.velocity, &mut self.vel);
-        // The chain blocks keep their copy of the inverse masses until one changes.
+        scatter(&p.position, &mut self.pos, self.cols);
+        scatter(&p.velocity, &mut self.vel, self.cols);
+        // The chain blocks keep their copy of the inverse masses until one changes (compared
+        // in one pass the compiler vectorises).
         if !self
             .inv_mass
             .iter()
             .zip(&p.inv_mass)
-            .all(|(a, b)| a.to_bits() == b.to_bits())
+            .fold(true, |same, (a, b)| same & (a.to_bits() == b.to_bits()))
         {
             self.inv_mass.copy_from_slice(&p.inv_mass);
             self.chain_statics = [false; 2];
@@ -1561,16 +1562,19 @@ fn rows_pair(block: &mut [f32], r: usize, dr: usize, cols: usize) -> (&mut [f32]
     (&mut a[r * cols..(r + 1) * cols], &mut b[..cols])
 }
 
-fn scatter(v: &[Vec3], out: &mut [Placed; 3]) {
+/// `Vec3`s into three arrays (x, y, z), rows of `cols` in parallel (a copy: the same values
+/// however the rows are shared out).
+fn scatter(v: &[Vec3], out: &mut [Placed; 3], cols: usize) {
     let [x, y, z] = out;
-    for (((p, x), y), z) in v
-        .iter()
-        .zip(x.iter_mut())
-        .zip(y.iter_mut())
-        .zip(z.iter_mut())
-    {
-        (*x, *y, *z) = (p.x, p.y, p.z);
-    }
+    x.par_chunks_mut(cols)
+        .zip(y.par_chunks_mut(cols))
+        .zip(z.par_chunks_mut(cols))
+        .zip(v.par_chunks(cols))
+        .for_each(|(((x, y), z), v)| {
+            for (((p, x), y), z) in v.iter().zip(x).zip(y).zip(z) {
+                (*x, *y, *z) = (p.x, p.y, p.z);
+            }
+        });
 }
 
 /// The air's parameters for [`air_row`].

@@ -192,15 +192,16 @@ pub(super) fn substep(
             *x += h * *v;
         }
     }
-    if settings.tethers {
-        sc.update_tethers(ctx);
-    }
 
-    // 2. constraint sweeps: on the grid path when it applies.
+    // 2. constraint sweeps: on the grid path when it applies (which it does only when no
+    //    tether is needed: nothing pinned, or tethers off).
     if grid {
         // Stages 2 and 3 (and continuous collision), on the arrays.
         sc.grid.sweeps(ctx, ccd);
         return true;
+    }
+    if settings.tethers {
+        sc.update_tethers(ctx);
     }
     reference_sweeps(ctx, sc, hash);
 
