@@ -144,32 +144,6 @@ pub fn kernel_for(sim: &crate::Simulation) -> Kernel {
     }
 }
 
-/// Runs one band of the grid fast path with `kernel`.
-pub(crate) fn run_band(
-    kernel: Kernel,
-    job: &Job<'_>,
-    r0: usize,
-    r1: usize,
-    band: &mut Band,
-    dest: Dest<'_>,
-) -> BandResult {
-    match kernel {
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512 if Kernel::Avx512.is_available() => {
-            // SAFETY: the CPU has every feature `band_avx512` is compiled with (checked on
-            // the line above).
-            unsafe { band_avx512(job, r0, r1, band, dest) }
-        }
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 if Kernel::Avx2.is_available() => {
-            // SAFETY: the CPU has every feature `band_avx2` is compiled with (checked on the
-            // line above).
-            unsafe { band_avx2(job, r0, r1, band, dest) }
-        }
-        _ => grid_kernel::band(job, r0, r1, band, dest),
-    }
-}
-
 /// A cache line's alignment, for [`align_frame`].
 #[cfg(target_arch = "x86_64")]
 #[repr(C, align(64))]
@@ -188,18 +162,61 @@ fn align_frame() {
     std::hint::black_box(&mut line);
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn band_avx2(job: &Job<'_>, r0: usize, r1: usize, band: &mut Band, dest: Dest<'_>) -> BandResult {
-    align_frame();
-    grid_kernel::band(job, r0, r1, band, dest)
+/// Defines `pub(crate) fn NAME(kernel: Kernel, args…)`, which runs the generic `GENERIC(args…)`
+/// as compiled with AVX-512 F + VL (the function `AVX512`) or with AVX2 + FMA (`AVX2`) when
+/// `kernel` asks for that instruction set and the CPU has it, else as compiled for the
+/// baseline target. Both compiled copies start with [`align_frame`]. Written
+/// `dispatched! { /// docs  fn NAME / AVX2 / AVX512(args…) -> Ret = GENERIC; }`.
+macro_rules! dispatched {
+    (
+        $(#[$attr:meta])*
+        fn $name:ident / $avx2:ident / $avx512:ident ($($arg:ident: $ty:ty),* $(,)?)
+            $(-> $ret:ty)? = $generic:path;
+    ) => {
+        $(#[$attr])*
+        pub(crate) fn $name(kernel: Kernel, $($arg: $ty),*) $(-> $ret)? {
+            match kernel {
+                #[cfg(target_arch = "x86_64")]
+                Kernel::Avx512 if Kernel::Avx512.is_available() => {
+                    // SAFETY: the CPU has every feature the AVX-512 copy is compiled with
+                    // (checked on the line above).
+                    unsafe { $avx512($($arg),*) }
+                }
+                #[cfg(target_arch = "x86_64")]
+                Kernel::Avx2 if Kernel::Avx2.is_available() => {
+                    // SAFETY: the CPU has every feature the AVX2 copy is compiled with
+                    // (checked on the line above).
+                    unsafe { $avx2($($arg),*) }
+                }
+                _ => $generic($($arg),*),
+            }
+        }
+
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2,fma")]
+        fn $avx2($($arg: $ty),*) $(-> $ret)? {
+            align_frame();
+            $generic($($arg),*)
+        }
+
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+        fn $avx512($($arg: $ty),*) $(-> $ret)? {
+            align_frame();
+            $generic($($arg),*)
+        }
+    };
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-fn band_avx512(job: &Job<'_>, r0: usize, r1: usize, band: &mut Band, dest: Dest<'_>) -> BandResult {
-    align_frame();
-    grid_kernel::band(job, r0, r1, band, dest)
+dispatched! {
+    /// Runs one band of the grid fast path with `kernel`.
+    fn run_band / band_avx2 / band_avx512(
+        job: &Job<'_>,
+        r0: usize,
+        r1: usize,
+        band: &mut Band,
+        dest: Dest<'_>,
+    ) -> BandResult = grid_kernel::band;
 }
 
 /// One vertical pass's two rows of the grid XPBD path (see `solver::grid_xpbd`), with the
@@ -307,56 +324,17 @@ fn row_avx512(
     grid_xpbd::row(x, corr, shared, g0, s, lambda, mask);
 }
 
-/// The air forces of one cell row of XPBD's grid path, with `kernel` (the stepping thread's
-/// choice, passed on to the pool's workers). (The explicit integrators' bands call
-/// [`grid_xpbd::air_row`] inside their own kernel.)
-pub(crate) fn xpbd_air(
-    kernel: Kernel,
-    top: [&[f32]; 6],
-    bottom: [&[f32]; 6],
-    cols: usize,
-    k: &AirCoefficients,
-    out: [[&mut [f32]; 3]; 2],
-) {
-    match kernel {
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512 if Kernel::Avx512.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { air_avx512(top, bottom, cols, k, out) }
-        }
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 if Kernel::Avx2.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { air_avx2(top, bottom, cols, k, out) }
-        }
-        _ => grid_xpbd::air_row(top, bottom, cols, k, out),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn air_avx2(
-    top: [&[f32]; 6],
-    bottom: [&[f32]; 6],
-    cols: usize,
-    k: &AirCoefficients,
-    out: [[&mut [f32]; 3]; 2],
-) {
-    align_frame();
-    grid_xpbd::air_row(top, bottom, cols, k, out);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-fn air_avx512(
-    top: [&[f32]; 6],
-    bottom: [&[f32]; 6],
-    cols: usize,
-    k: &AirCoefficients,
-    out: [[&mut [f32]; 3]; 2],
-) {
-    align_frame();
-    grid_xpbd::air_row(top, bottom, cols, k, out);
+dispatched! {
+    /// The air forces of one cell row of XPBD's grid path, with `kernel` (the stepping thread's
+    /// choice, passed on to the pool's workers). (The explicit integrators' bands call
+    /// [`grid_xpbd::air_row`] inside their own kernel.)
+    fn xpbd_air / air_avx2 / air_avx512(
+        top: [&[f32]; 6],
+        bottom: [&[f32]; 6],
+        cols: usize,
+        k: &AirCoefficients,
+        out: [[&mut [f32]; 3]; 2],
+    ) = grid_xpbd::air_row;
 }
 
 /// Whether `kernel` solves two blocks of chains together ([`chains::solve`] with `N = 2`, the
@@ -419,300 +397,76 @@ fn chains_avx512<const N: usize>(
     chains::solve::<{ chains::LANES }, N>(blocks, len, alpha, gamma, keep);
 }
 
-/// Continuous collision's candidates of a run of particles against spheres and planes that
-/// do not turn ([`grid_kernel::ccd_mask`]; the same mask on every kernel), for callers outside
-/// a dispatched kernel (XPBD's finishing pass; the explicit band inlines it).
-pub(crate) fn ccd_mask(
-    kernel: Kernel,
-    colliders: &[crate::collide::Collider],
-    h: f32,
-    w: &[f32],
-    a: [&[f32]; 3],
-    b: [&[f32]; 3],
-    near: &mut [bool],
-) {
-    match kernel {
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512 if Kernel::Avx512.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { ccd_mask_avx512(colliders, h, w, a, b, near) }
-        }
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 if Kernel::Avx2.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { ccd_mask_avx2(colliders, h, w, a, b, near) }
-        }
-        _ => grid_kernel::ccd_mask(colliders, h, w, a, b, near),
-    }
+dispatched! {
+    /// Continuous collision's candidates of a run of particles against spheres and planes that
+    /// do not turn ([`grid_kernel::ccd_mask`]; the same mask on every kernel), for callers outside
+    /// a dispatched kernel (XPBD's finishing pass; the explicit band inlines it).
+    fn ccd_mask / ccd_mask_avx2 / ccd_mask_avx512(
+        colliders: &[crate::collide::Collider],
+        h: f32,
+        w: &[f32],
+        a: [&[f32]; 3],
+        b: [&[f32]; 3],
+        near: &mut [bool],
+    ) = grid_kernel::ccd_mask;
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn ccd_mask_avx2(
-    colliders: &[crate::collide::Collider],
-    h: f32,
-    w: &[f32],
-    a: [&[f32]; 3],
-    b: [&[f32]; 3],
-    near: &mut [bool],
-) {
-    align_frame();
-    grid_kernel::ccd_mask(colliders, h, w, a, b, near);
+dispatched! {
+    /// The diagnostics' energies, strains and stretch check of a run of springs
+    /// ([`crate::diagnostics::spring_lanes`]; the same bits on every kernel).
+    fn spring_lanes / spring_lanes_avx2 / spring_lanes_avx512(
+        position: &[glam::Vec3],
+        springs: &[crate::topology::Spring],
+        k: f64,
+        limit: f32,
+    ) -> crate::diagnostics::SpringLanes = crate::diagnostics::spring_lanes;
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-fn ccd_mask_avx512(
-    colliders: &[crate::collide::Collider],
-    h: f32,
-    w: &[f32],
-    a: [&[f32]; 3],
-    b: [&[f32]; 3],
-    near: &mut [bool],
-) {
-    align_frame();
-    grid_kernel::ccd_mask(colliders, h, w, a, b, near);
+dispatched! {
+    /// The diagnostics' spring pass with the lengths already measured
+    /// ([`crate::diagnostics::length_lanes`]; the same bits on every kernel).
+    fn length_lanes / length_lanes_avx2 / length_lanes_avx512(
+        lengths: &[f32],
+        springs: &[crate::topology::Spring],
+        k: f64,
+        limit: f32,
+    ) -> crate::diagnostics::SpringLanes = crate::diagnostics::length_lanes;
 }
 
-/// The diagnostics' energies, strains and stretch check of a run of springs
-/// ([`crate::diagnostics::spring_lanes`]; the same bits on every kernel).
-pub(crate) fn spring_lanes(
-    kernel: Kernel,
-    position: &[glam::Vec3],
-    springs: &[crate::topology::Spring],
-    k: f64,
-    limit: f32,
-) -> crate::diagnostics::SpringLanes {
-    match kernel {
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512 if Kernel::Avx512.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { spring_lanes_avx512(position, springs, k, limit) }
-        }
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 if Kernel::Avx2.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { spring_lanes_avx2(position, springs, k, limit) }
-        }
-        _ => crate::diagnostics::spring_lanes(position, springs, k, limit),
-    }
+dispatched! {
+    /// The diagnostics' spring lengths of some rows of a grid cloth
+    /// ([`crate::diagnostics::grid_row_lengths`]; the same bits on every kernel).
+    fn grid_row_lengths / grid_row_lengths_avx2 / grid_row_lengths_avx512(
+        position: &[glam::Vec3],
+        shape: [usize; 2],
+        rows: std::ops::Range<usize>,
+        out: [&mut [f32]; 4],
+    ) = crate::diagnostics::grid_row_lengths;
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn spring_lanes_avx2(
-    position: &[glam::Vec3],
-    springs: &[crate::topology::Spring],
-    k: f64,
-    limit: f32,
-) -> crate::diagnostics::SpringLanes {
-    align_frame();
-    crate::diagnostics::spring_lanes(position, springs, k, limit)
+dispatched! {
+    /// One chunk of the diagnostics' particle pass ([`crate::diagnostics::particle_chunk`]; the
+    /// same bits on every kernel).
+    fn particle_chunk / particle_chunk_avx2 / particle_chunk_avx512(
+        state: [&[glam::Vec3]; 2],
+        mass: [&[f32]; 2],
+        colliders: &[crate::collide::Collider],
+        g: glam::Vec3,
+        max_speed_sq: f32,
+    ) -> crate::diagnostics::Partial = crate::diagnostics::particle_chunk;
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-fn spring_lanes_avx512(
-    position: &[glam::Vec3],
-    springs: &[crate::topology::Spring],
-    k: f64,
-    limit: f32,
-) -> crate::diagnostics::SpringLanes {
-    align_frame();
-    crate::diagnostics::spring_lanes(position, springs, k, limit)
-}
-
-/// The diagnostics' spring pass with the lengths already measured
-/// ([`crate::diagnostics::length_lanes`]; the same bits on every kernel).
-pub(crate) fn length_lanes(
-    kernel: Kernel,
-    lengths: &[f32],
-    springs: &[crate::topology::Spring],
-    k: f64,
-    limit: f32,
-) -> crate::diagnostics::SpringLanes {
-    match kernel {
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512 if Kernel::Avx512.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { length_lanes_avx512(lengths, springs, k, limit) }
-        }
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 if Kernel::Avx2.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { length_lanes_avx2(lengths, springs, k, limit) }
-        }
-        _ => crate::diagnostics::length_lanes(lengths, springs, k, limit),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn length_lanes_avx2(
-    lengths: &[f32],
-    springs: &[crate::topology::Spring],
-    k: f64,
-    limit: f32,
-) -> crate::diagnostics::SpringLanes {
-    crate::diagnostics::length_lanes(lengths, springs, k, limit)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-fn length_lanes_avx512(
-    lengths: &[f32],
-    springs: &[crate::topology::Spring],
-    k: f64,
-    limit: f32,
-) -> crate::diagnostics::SpringLanes {
-    crate::diagnostics::length_lanes(lengths, springs, k, limit)
-}
-
-/// The diagnostics' spring lengths of some rows of a grid cloth
-/// ([`crate::diagnostics::grid_row_lengths`]; the same bits on every kernel).
-pub(crate) fn grid_row_lengths(
-    kernel: Kernel,
-    position: &[glam::Vec3],
-    shape: [usize; 2],
-    rows: std::ops::Range<usize>,
-    out: [&mut [f32]; 4],
-) {
-    match kernel {
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512 if Kernel::Avx512.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { grid_row_lengths_avx512(position, shape, rows, out) }
-        }
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 if Kernel::Avx2.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { grid_row_lengths_avx2(position, shape, rows, out) }
-        }
-        _ => crate::diagnostics::grid_row_lengths(position, shape, rows, out),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn grid_row_lengths_avx2(
-    position: &[glam::Vec3],
-    shape: [usize; 2],
-    rows: std::ops::Range<usize>,
-    out: [&mut [f32]; 4],
-) {
-    crate::diagnostics::grid_row_lengths(position, shape, rows, out);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-fn grid_row_lengths_avx512(
-    position: &[glam::Vec3],
-    shape: [usize; 2],
-    rows: std::ops::Range<usize>,
-    out: [&mut [f32]; 4],
-) {
-    crate::diagnostics::grid_row_lengths(position, shape, rows, out);
-}
-
-/// One chunk of the diagnostics' particle pass ([`crate::diagnostics::particle_chunk`]; the
-/// same bits on every kernel).
-pub(crate) fn particle_chunk(
-    kernel: Kernel,
-    state: [&[glam::Vec3]; 2],
-    mass: [&[f32]; 2],
-    colliders: &[crate::collide::Collider],
-    g: glam::Vec3,
-    max_speed_sq: f32,
-) -> crate::diagnostics::Partial {
-    match kernel {
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512 if Kernel::Avx512.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { particle_chunk_avx512(state, mass, colliders, g, max_speed_sq) }
-        }
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 if Kernel::Avx2.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { particle_chunk_avx2(state, mass, colliders, g, max_speed_sq) }
-        }
-        _ => crate::diagnostics::particle_chunk(state, mass, colliders, g, max_speed_sq),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn particle_chunk_avx2(
-    state: [&[glam::Vec3]; 2],
-    mass: [&[f32]; 2],
-    colliders: &[crate::collide::Collider],
-    g: glam::Vec3,
-    max_speed_sq: f32,
-) -> crate::diagnostics::Partial {
-    crate::diagnostics::particle_chunk(state, mass, colliders, g, max_speed_sq)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-fn particle_chunk_avx512(
-    state: [&[glam::Vec3]; 2],
-    mass: [&[f32]; 2],
-    colliders: &[crate::collide::Collider],
-    g: glam::Vec3,
-    max_speed_sq: f32,
-) -> crate::diagnostics::Partial {
-    crate::diagnostics::particle_chunk(state, mass, colliders, g, max_speed_sq)
-}
-
-/// XPBD's contacts of a run of particles with colliders that are all spheres or planes that
-/// do not turn, on the arrays ([`grid_xpbd::contacts_soa_row`]: the pre-test and the exact
-/// kernel; the same bits on every kernel). Returns the contact count.
-pub(crate) fn xpbd_contacts(
-    kernel: Kernel,
-    colliders: &[crate::collide::Collider],
-    h: f32,
-    w: &[f32],
-    x: [&mut [f32]; 3],
-    x0: [&[f32]; 3],
-) -> u32 {
-    match kernel {
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512 if Kernel::Avx512.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { contacts_avx512(colliders, h, w, x, x0) }
-        }
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 if Kernel::Avx2.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { contacts_avx2(colliders, h, w, x, x0) }
-        }
-        _ => grid_xpbd::contacts_soa_row(colliders, h, w, x, x0),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn contacts_avx2(
-    colliders: &[crate::collide::Collider],
-    h: f32,
-    w: &[f32],
-    x: [&mut [f32]; 3],
-    x0: [&[f32]; 3],
-) -> u32 {
-    align_frame();
-    grid_xpbd::contacts_soa_row(colliders, h, w, x, x0)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-fn contacts_avx512(
-    colliders: &[crate::collide::Collider],
-    h: f32,
-    w: &[f32],
-    x: [&mut [f32]; 3],
-    x0: [&[f32]; 3],
-) -> u32 {
-    align_frame();
-    grid_xpbd::contacts_soa_row(colliders, h, w, x, x0)
+dispatched! {
+    /// XPBD's contacts of a run of particles with colliders that are all spheres or planes that
+    /// do not turn, on the arrays ([`grid_xpbd::contacts_soa_row`]: the pre-test and the exact
+    /// kernel; the same bits on every kernel). Returns the contact count.
+    fn xpbd_contacts / contacts_avx2 / contacts_avx512(
+        colliders: &[crate::collide::Collider],
+        h: f32,
+        w: &[f32],
+        x: [&mut [f32]; 3],
+        x0: [&[f32]; 3],
+    ) -> u32 = grid_xpbd::contacts_soa_row;
 }
 
 /// Transposes one tile of 16 × 16 floats: `dst[k·dst_stride + l] = src[l·src_stride + k]`
