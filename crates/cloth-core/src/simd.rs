@@ -219,109 +219,31 @@ dispatched! {
     ) -> BandResult = grid_kernel::band;
 }
 
-/// One vertical pass's two rows of the grid XPBD path (see `solver::grid_xpbd`), with the
-/// chosen kernel.
-pub(crate) fn xpbd_pairs(
-    a: [&mut [f32]; 3],
-    b: [&mut [f32]; 3],
-    shared: &Shared<'_>,
-    g: (usize, usize, usize),
-    lambda: &mut [f32],
-) {
-    match kernel() {
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512 if Kernel::Avx512.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { pairs_avx512(a, b, shared, g, lambda) }
-        }
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 if Kernel::Avx2.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { pairs_avx2(a, b, shared, g, lambda) }
-        }
-        _ => grid_xpbd::pairs(a, b, shared, g, lambda),
-    }
+dispatched! {
+    /// One vertical pass's two rows of the grid XPBD path (see `solver::grid_xpbd`), with
+    /// `kernel` (the stepping thread's choice, passed on to the pool's workers).
+    fn xpbd_pairs / pairs_avx2 / pairs_avx512(
+        a: [&mut [f32]; 3],
+        b: [&mut [f32]; 3],
+        shared: &Shared<'_>,
+        g: (usize, usize, usize),
+        lambda: &mut [f32],
+    ) = grid_xpbd::pairs;
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn pairs_avx2(
-    a: [&mut [f32]; 3],
-    b: [&mut [f32]; 3],
-    shared: &Shared<'_>,
-    g: (usize, usize, usize),
-    lambda: &mut [f32],
-) {
-    align_frame();
-    grid_xpbd::pairs(a, b, shared, g, lambda);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-fn pairs_avx512(
-    a: [&mut [f32]; 3],
-    b: [&mut [f32]; 3],
-    shared: &Shared<'_>,
-    g: (usize, usize, usize),
-    lambda: &mut [f32],
-) {
-    align_frame();
-    grid_xpbd::pairs(a, b, shared, g, lambda);
-}
-
-/// One row of a horizontal pass of the grid XPBD path, with the chosen kernel.
-pub(crate) fn xpbd_row(
-    x: [&mut [f32]; 3],
-    corr: [&mut [f32]; 3],
-    shared: &Shared<'_>,
-    g0: usize,
-    s: usize,
-    lambda: &mut [f32],
-    mask: &[f32],
-) {
-    match kernel() {
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512 if Kernel::Avx512.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { row_avx512(x, corr, shared, g0, s, lambda, mask) }
-        }
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 if Kernel::Avx2.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { row_avx2(x, corr, shared, g0, s, lambda, mask) }
-        }
-        _ => grid_xpbd::row(x, corr, shared, g0, s, lambda, mask),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn row_avx2(
-    x: [&mut [f32]; 3],
-    corr: [&mut [f32]; 3],
-    shared: &Shared<'_>,
-    g0: usize,
-    s: usize,
-    lambda: &mut [f32],
-    mask: &[f32],
-) {
-    align_frame();
-    grid_xpbd::row(x, corr, shared, g0, s, lambda, mask);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-fn row_avx512(
-    x: [&mut [f32]; 3],
-    corr: [&mut [f32]; 3],
-    shared: &Shared<'_>,
-    g0: usize,
-    s: usize,
-    lambda: &mut [f32],
-    mask: &[f32],
-) {
-    align_frame();
-    grid_xpbd::row(x, corr, shared, g0, s, lambda, mask);
+dispatched! {
+    /// One row of a horizontal pass of the grid XPBD path, with `kernel` (the stepping
+    /// thread's choice, passed on to the pool's workers).
+    #[allow(clippy::too_many_arguments)]
+    fn xpbd_row / row_avx2 / row_avx512(
+        x: [&mut [f32]; 3],
+        corr: [&mut [f32]; 3],
+        shared: &Shared<'_>,
+        g0: usize,
+        s: usize,
+        lambda: &mut [f32],
+        mask: &[f32],
+    ) = grid_xpbd::row;
 }
 
 dispatched! {

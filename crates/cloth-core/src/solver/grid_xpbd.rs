@@ -769,6 +769,7 @@ impl XpbdGrid {
             mode,
             keep: self.keep,
         };
+        let kernel = crate::simd::kernel();
         x[first..]
             .par_chunks_mut(block)
             .zip(y[first..].par_chunks_mut(block))
@@ -785,6 +786,7 @@ impl XpbdGrid {
                     let (za, zb) = rows_pair(bz, r, dr, cols);
                     let lam = &mut bl[r * cols..r * cols + m];
                     crate::simd::xpbd_pairs(
+                        kernel,
                         [
                             &mut xa[a_dc..a_dc + m],
                             &mut ya[a_dc..a_dc + m],
@@ -822,6 +824,7 @@ impl XpbdGrid {
         };
         let [x, y, z] = &mut self.pos;
         let [cx, cy, cz] = &mut self.corr;
+        let kernel = crate::simd::kernel();
         x.par_chunks_mut(cols)
             .zip(y.par_chunks_mut(cols))
             .zip(z.par_chunks_mut(cols))
@@ -842,6 +845,7 @@ impl XpbdGrid {
                         let (za, zb) = z.split_at_mut(c0 + s);
                         let ga = r * cols + c0;
                         crate::simd::xpbd_pairs(
+                            kernel,
                             [
                                 &mut xa[c0..c0 + len],
                                 &mut ya[c0..c0 + len],
@@ -856,6 +860,7 @@ impl XpbdGrid {
                     return;
                 }
                 crate::simd::xpbd_row(
+                    kernel,
                     [x, y, z],
                     [&mut cx[..m], &mut cy[..m], &mut cz[..m]],
                     &shared,
