@@ -596,8 +596,13 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         },
     };
     scratch.balance.prepare(rows, bands);
-    let clock = std::time::Instant::now();
+    // The bands' times, for the balance (only with several bands: one band has nothing to
+    // balance, and needs no clock).
+    let clock = (bands > 1).then(std::time::Instant::now);
     let run = |r0: usize, r1: usize, band: &mut Band, dest: Dest<'_>| {
+        let Some(clock) = clock else {
+            return simd::run_band(plan.kernel, &job, r0, r1, band, dest);
+        };
         let begin = clock.elapsed();
         let result = simd::run_band(plan.kernel, &job, r0, r1, band, dest);
         band.time = [begin, clock.elapsed()].map(|t| t.as_secs_f32() * 1e6);
