@@ -196,14 +196,14 @@ pub(crate) fn measure(
             0.0
         })
     };
-    // Per kind: its first spring in `all`, its chunk length and its first part.
+    // Per kind: its first spring in `all`, its spring count and chunk length, its first part.
     let mut first_part = [0_usize; 5];
-    let mut spans = [(0_usize, 0_usize); 4];
+    let mut spans = [(0_usize, 0_usize, 0_usize); 4];
     let mut offset = 0;
     for kind in SpringKind::ALL {
         let count = topology.springs_of(kind).len();
         let len = chunk_len(count);
-        spans[kind as usize] = (offset, len);
+        spans[kind as usize] = (offset, count, len);
         offset += count;
         first_part[kind as usize + 1] = first_part[kind as usize] + count.div_ceil(len);
     }
@@ -214,9 +214,8 @@ pub(crate) fn measure(
         .for_each(|(t, part)| {
             let kind = (0..4).rfind(|&k| first_part[k] <= t).unwrap_or(0);
             let kind = SpringKind::ALL[kind];
-            let (start, len) = spans[kind as usize];
+            let (start, count, len) = spans[kind as usize];
             let chunk = t - first_part[kind as usize];
-            let count = topology.springs_of(kind).len();
             let range = start + chunk * len..start + ((chunk + 1) * len).min(count);
             let (springs, k) = (&all[range.clone()], stiffness(kind));
             let lanes = match measured {
@@ -272,18 +271,18 @@ pub(crate) fn particle_chunk(
     let n = x.len();
     let (v, m, w) = (&v[..n], &m[..n], &w[..n]);
     let mut part = Partial::default();
+    // (Without short-circuits, so that the lanes below vectorise.)
     let bad_particle =
-        |x: Vec3, v: Vec3| !x.is_finite() || !v.is_finite() || v.length_squared() > max_speed_sq;
+        |x: Vec3, v: Vec3| !x.is_finite() | !v.is_finite() | (v.length_squared() > max_speed_sq);
     // Energies in lanes (particle i of the chunk adds to lane i mod E: independent sums,
     // which the compiler computes several at once), added in lane order at the end.
     const E: usize = 8;
     let (mut kinetic, mut potential) = ([0.0_f64; E], [0.0_f64; E]);
     let mut any_bad = false;
     let mut one = |l: usize, x: Vec3, v: Vec3, m: f32| {
-        let speed_sq = v.length_squared();
-        any_bad |= !x.is_finite() | !v.is_finite() | (speed_sq > max_speed_sq);
+        any_bad |= bad_particle(x, v);
         let m = f64::from(m);
-        kinetic[l] += 0.5 * m * f64::from(speed_sq);
+        kinetic[l] += 0.5 * m * f64::from(v.length_squared());
         potential[l] -= m * f64::from(g.dot(x));
     };
     let ((xc, xt), (vc, vt), (mc, mt)) =
@@ -352,14 +351,6 @@ pub(crate) struct SpringLanes {
     pub max: [f32; SPRING_LANES],
     /// Index in the run of the first spring longer than `limit` times its rest length.
     pub bad: Option<usize>,
-}
-
-/// A spring's length as the diagnostics measure it: `a − b`, then `(x² + y² + z²)`'s square
-/// root (glam's `distance`, unfused).
-#[inline(always)]
-fn spring_length(a: Vec3, b: Vec3) -> f32 {
-    let d = a - b;
-    (d.x * d.x + d.y * d.y + d.z * d.z).sqrt()
 }
 
 /// The springs' energies, strains and stretch check in [`SPRING_LANES`] lanes: independent
@@ -493,7 +484,7 @@ fn grid_rows_per_task(cols: usize) -> usize {
 /// The lengths of every spring of a grid cloth (built by [`crate::GridBuilder`], see
 /// [`Topology::grid`]) into `lengths`, in the topology's order, computed row by row from
 /// contiguous slices of the positions (tasks of [`grid_rows_per_task`] rows in parallel;
-/// each length is [`spring_length`], so the same bits as measuring spring by spring).
+/// each length is glam's `distance`, as when measuring spring by spring: the same bits).
 /// Returns `false` (and leaves `lengths` alone) for any other topology.
 fn grid_lengths(
     kernel: crate::simd::Kernel,
@@ -591,36 +582,36 @@ pub(crate) fn grid_row_lengths(
             let next = &position[(r + 1) * cols..][..cols];
             let (w, rest) = warp.split_at_mut(cols);
             for c in 0..cols {
-                w[c] = spring_length(row[c], next[c]);
+                w[c] = row[c].distance(next[c]);
             }
             warp = rest;
             let (s, rest) = shear.split_at_mut(2 * (cols - 1));
             for c in 0..cols - 1 {
-                s[2 * c] = spring_length(row[c], next[c + 1]);
-                s[2 * c + 1] = spring_length(row[c + 1], next[c]);
+                s[2 * c] = row[c].distance(next[c + 1]);
+                s[2 * c + 1] = row[c + 1].distance(next[c]);
             }
             shear = rest;
         }
         let (f, rest) = weft.split_at_mut(cols - 1);
         for c in 0..cols - 1 {
-            f[c] = spring_length(row[c], row[c + 1]);
+            f[c] = row[c].distance(row[c + 1]);
         }
         weft = rest;
         if r + 2 < rows {
             let next2 = &position[(r + 2) * cols..][..cols];
             let (b, rest) = bend.split_at_mut(cols + h);
             for c in 0..h {
-                b[2 * c] = spring_length(row[c], next2[c]);
-                b[2 * c + 1] = spring_length(row[c], row[c + 2]);
+                b[2 * c] = row[c].distance(next2[c]);
+                b[2 * c + 1] = row[c].distance(row[c + 2]);
             }
             for c in h..cols {
-                b[h + c] = spring_length(row[c], next2[c]);
+                b[h + c] = row[c].distance(next2[c]);
             }
             bend = rest;
         } else {
             let (b, rest) = bend.split_at_mut(h);
             for c in 0..h {
-                b[c] = spring_length(row[c], row[c + 2]);
+                b[c] = row[c].distance(row[c + 2]);
             }
             bend = rest;
         }

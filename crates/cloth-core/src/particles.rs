@@ -39,6 +39,13 @@ impl Particles {
         self.inv_mass[i] == 0.0
     }
 
+    /// `true` when some particle is pinned (one pass over the inverse masses, without an
+    /// early exit, which the compiler vectorises).
+    #[must_use]
+    pub fn any_pinned(&self) -> bool {
+        self.inv_mass.iter().fold(false, |any, &w| any | (w == 0.0))
+    }
+
     /// The smallest particle mass, kg (infinite for no particles). The stiffest, lightest
     /// particle bounds the stable step of the explicit integrators.
     #[must_use]

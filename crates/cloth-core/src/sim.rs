@@ -547,10 +547,7 @@ impl Simulation {
 
             // 2. pins (stages 2 and 4 touch only pinned particles: skipped when there are
             //    none, which one vectorised pass over the inverse masses tells)
-            let any_pinned = particles
-                .inv_mass
-                .iter()
-                .fold(false, |a, &w| a | (w == 0.0));
+            let any_pinned = particles.any_pinned();
             if any_pinned {
                 for (i, target) in pin_target.iter().enumerate() {
                     if particles.inv_mass[i] != 0.0 {
@@ -580,6 +577,7 @@ impl Simulation {
                         h,
                         contacts: &mut contacts,
                         rest,
+                        pinned: any_pinned,
                     },
                 );
             }

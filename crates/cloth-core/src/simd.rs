@@ -136,7 +136,7 @@ pub fn kernel_for(sim: &crate::Simulation) -> Kernel {
     let cfg = sim.config();
     let xpbd = cfg.integrator == crate::Integrator::Xpbd
         && k != Kernel::Reference
-        && grid_xpbd::applies(cfg, sim.topology(), &sim.particles().inv_mass);
+        && grid_xpbd::applies(cfg, sim.topology(), sim.particles().any_pinned());
     if xpbd || grid_kernel::applies(k, cfg.integrator, sim.topology()) {
         k
     } else {

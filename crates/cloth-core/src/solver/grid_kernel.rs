@@ -171,7 +171,7 @@ impl Balance {
 
     /// Starts from [`band_start`]'s split when the rows or the bands changed.
     fn prepare(&mut self, rows: usize, bands: usize) {
-        if self.key == (rows, bands) && self.starts.len() == bands + 1 {
+        if self.key == (rows, bands) {
             return;
         }
         self.key = (rows, bands);

@@ -184,10 +184,8 @@ pub(crate) struct XpbdGrid {
 /// Whether the grid path runs XPBD's sweeps for these settings: a cloth built by the grid
 /// builder, no self-collision and no tethers to pinned particles (which the reference path
 /// handles).
-pub(crate) fn applies(config: &SimConfig, topology: &Topology, inv_mass: &[f32]) -> bool {
-    topology.grid().is_some()
-        && config.self_collision.is_none()
-        && !(config.xpbd.tethers && inv_mass.iter().fold(false, |a, &w| a | (w == 0.0)))
+pub(crate) fn applies(config: &SimConfig, topology: &Topology, pinned: bool) -> bool {
+    topology.grid().is_some() && config.self_collision.is_none() && !(config.xpbd.tethers && pinned)
 }
 
 impl XpbdGrid {

@@ -39,6 +39,9 @@ pub(crate) struct SubstepCtx<'a> {
     pub contacts: &'a mut ContactStats,
     /// Rest-shape positions (for tethers).
     pub rest: &'a [Vec3],
+    /// Some particle is pinned ([`Particles::any_pinned`], found once per step: the inverse
+    /// masses do not change inside a step).
+    pub pinned: bool,
 }
 
 /// Provot-style strain limiting (Provot 1995): every structural and shear spring stretched

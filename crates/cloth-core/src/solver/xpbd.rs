@@ -168,7 +168,7 @@ pub(super) fn substep(
     // 1. predict, with external forces (gravity, damping, air) only: on the grid path when it
     //    applies (same bits, rows in parallel).
     let grid = crate::simd::kernel() != crate::simd::Kernel::Reference
-        && super::grid_xpbd::applies(cfg, ctx.topology, &ctx.particles.inv_mass)
+        && super::grid_xpbd::applies(cfg, ctx.topology, ctx.pinned)
         && sc.grid.prepare(ctx.topology, ctx.particles.len());
     if grid {
         sc.grid.predict(ctx);
