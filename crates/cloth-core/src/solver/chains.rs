@@ -32,8 +32,10 @@
 //! (a contact pass before each round), the multipliers carried from round to round
 //! ([`Multipliers`]), which lowers what the weft and the contacts leave of the warp's error.
 //!
-//! A chain of two particles (one spring) gives the reference's single-spring projection to
-//! the bit. A spring of zero length or between two pinned particles is left out of its chain
+//! A chain of two particles (one spring) gives the reference's single-spring projection, up
+//! to rounding: the solve multiplies by one reciprocal where the reference divides (one
+//! division per spring for its direction and one per elimination step, instead of five:
+//! the divider set the pace of the solve). A spring of zero length or between two pinned particles is left out of its chain
 //! (its multiplier does not change).
 //!
 //! The chains of one direction are independent. The grid path solves them in blocks of
@@ -186,7 +188,8 @@ pub(crate) fn solve<const L: usize, const N: usize>(
                     let ws = wa + wb;
                     let active = length > 0.0 && ws > 0.0;
                     (ex[l], ey[l], ez[l]) = if active {
-                        (dx / length, dy / length, dz / length)
+                        let inv = 1.0 / length;
+                        (dx * inv, dy * inv, dz * inv)
                     } else {
                         (0.0, 0.0, 0.0)
                     };
@@ -221,11 +224,11 @@ pub(crate) fn solve<const L: usize, const N: usize>(
         dp[len - 1] = [0.0; L];
         (nx[len - 1], ny[len - 1], nz[len - 1]) = ([0.0; L], [0.0; L], [0.0; L]);
     }
-    // 2. The elimination, the blocks' steps interleaved. Step k, from spring k − 1's
-    // eliminated diagonal `m_prev` and right-hand side `dp_prev`: the eliminated right-hand
-    // side replaces `dp[k]`, the coupling `c` goes into `cp[k − 1]` (k > 0) and the eliminated
-    // diagonal into `cp[k]` (read back as `m_prev` by step k + 1, then overwritten with its
-    // coupling). The recurrences go through the block's arrays (each step reads what the step
+    // 2. The elimination, the blocks' steps interleaved. Step k, from the reciprocal `m_prev`
+    // of spring k − 1's eliminated diagonal and its right-hand side `dp_prev`: the eliminated
+    // right-hand side replaces `dp[k]`, the coupling `c` goes into `cp[k − 1]` (k > 0) and the
+    // reciprocal of the eliminated diagonal into `cp[k]` (read back as `m_prev` by step k + 1,
+    // then overwritten with its coupling): one division per step. The recurrences go through the block's arrays (each step reads what the step
     // before it wrote, from L1), not through arrays carried in the loop, which the compiler
     // split into scalars or spilled.
     {
@@ -245,11 +248,11 @@ pub(crate) fn solve<const L: usize, const N: usize>(
                 let (mut c_k, mut m_k, mut d) = ([0.0_f32; L], [0.0_f32; L], [0.0_f32; L]);
                 for l in 0..L {
                     let e = e_k[l];
-                    let c = e / m_prev[l];
-                    let m = diag_k[l] - e * c;
-                    d[l] = (rhs_k[l] - e * dp_prev[l]) / m;
+                    let c = e * m_prev[l];
+                    let r = 1.0 / (diag_k[l] - e * c);
+                    d[l] = (rhs_k[l] - e * dp_prev[l]) * r;
                     c_k[l] = c;
-                    m_k[l] = m;
+                    m_k[l] = r;
                 }
                 dp[k] = d;
                 if k > 0 {
