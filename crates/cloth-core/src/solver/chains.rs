@@ -504,26 +504,30 @@ pub(crate) fn gather<const L: usize>(
 }
 
 /// The positions of weft block `block` (rows `block·L ..`, fields 0, 1, 2) copied straight
-/// from the warp's blocks (`warp`: every column's chain just solved, `stride(rows)` per field),
+/// from the warp's blocks (`from`: every column's chain just solved, `stride(rows)` per field),
 /// instead of scattering the warp into the rows and gathering the weft from them: tile `(b,
 /// block)` of 16 columns × 16 rows is a transpose of one contiguous tile into another. The
 /// same values as the round trip through the rows (the warp's lanes past `cols` and steps
 /// past `rows` are not read; the weft's lanes past `rows` are left as they are).
+///
+/// With `(rows, cols)` given as `(cols, rows)` it is the other way round: the positions of
+/// warp block `block` (columns `block·L ..`) from the weft's blocks (`stride(cols)` per field),
+/// the grid seen transposed.
 pub(crate) fn handoff<const L: usize>(
     chunk: &mut [f32],
-    warp: &[f32],
+    from: &[f32],
     block: usize,
     (rows, cols): (usize, usize),
     kernel: crate::simd::Kernel,
 ) {
     let size = chunk.len() / FIELDS;
-    let warp_size = stride(rows);
+    let from_size = stride(rows);
     let lanes = L.min(rows - block * L);
     for f in 0..3 {
         let dst = &mut chunk[f * size..][..cols * L];
         for (b, dst) in dst.chunks_mut(L * L).enumerate() {
             // Warp block b: steps block·L + lane (the weft's lanes), lanes k (its steps).
-            let src = &warp[(b * FIELDS + f) * warp_size..][block * L * L..][..lanes * L];
+            let src = &from[(b * FIELDS + f) * from_size..][block * L * L..][..lanes * L];
             if L == 16 && lanes == L && dst.len() == L * L {
                 crate::simd::transpose16(kernel, src, L, dst, L);
                 continue;

@@ -24,7 +24,8 @@
 //!    α = 1/k, dashpot as constraint damping); with `XpbdSettings::chains`, shear and bend
 //!    first and then the warp and the weft as whole chains ([`super::chains`]: every column,
 //!    then every row, each solved exactly by a tridiagonal solve, in blocks of 16 chains two
-//!    blocks at a time, the weft taking the warp's positions straight from its blocks),
+//!    blocks at a time, the weft taking the warp's positions straight from its blocks and,
+//!    between rounds, the warp the weft's),
 //!    `XpbdSettings::chain_rounds` times in turn (each round after a contact pass when there
 //!    are several);
 //! 2. the multi-resolution strain limits, when `XpbdSettings::hierarchy_levels > 0` (after
@@ -491,6 +492,11 @@ impl XpbdGrid {
                 // before, on each block's rows right after their write-back (the same
                 // per-particle operations on the same values: the same bits).
                 let fused = compliant(modes[1]) && !ctx.colliders.is_empty();
+                // Then between rounds the positions stay in the weft's blocks: the weft does
+                // not write them back into the rows (its contacts run on its blocks) and the
+                // next round's warp takes them from the weft's blocks; the last round's weft
+                // writes them back.
+                let in_blocks = handoff && fused;
                 for round in 0..rounds {
                     if rounds > 1 && !(fused && round > 0) {
                         self.contacts(ctx.colliders, h);
@@ -507,9 +513,13 @@ impl XpbdGrid {
                         let Some(Mode::Compliant { alpha, gamma }) = mode else {
                             continue;
                         };
-                        let after = if class == 1 { after } else { None };
+                        let (after, in_blocks) = if class == 1 {
+                            (after, in_blocks && round + 1 < rounds)
+                        } else {
+                            (None, in_blocks && round > 0)
+                        };
                         let solve = (alpha, gamma, iterations);
-                        self.chains(class, solve, multipliers, handoff, after);
+                        self.chains(class, solve, multipliers, (handoff, in_blocks), after);
                     }
                 }
             }
@@ -544,12 +554,18 @@ impl XpbdGrid {
     /// are its own), followed there by the contacts of its rows with `contacts` (the colliders
     /// and the substep) when given; the warp's columns are written back row by row in a second
     /// pass.
+    ///
+    /// `handoff`: the weft takes its positions from the warp's blocks, and the warp does not
+    /// write them into the rows. `in_blocks`: for the weft, its positions stay in its blocks
+    /// (not written back into the rows; the contacts run on the blocks); for the warp, it
+    /// takes its positions from the weft's blocks instead of the rows. The same values either
+    /// way, so the same bits.
     fn chains(
         &mut self,
         class: usize,
         (alpha, gamma, iterations): (f32, f32, u32),
         multipliers: Multipliers,
-        handoff: bool,
+        (handoff, in_blocks): (bool, bool),
         contacts: Option<(&[crate::collide::Collider], f32)>,
     ) {
         use super::chains::{self, FIELDS, LANES};
@@ -559,9 +575,10 @@ impl XpbdGrid {
         let blocks = count.div_ceil(LANES);
         let kernel = crate::simd::kernel();
         let [warp, weft] = &mut self.chains;
-        // With both directions solved the weft takes its positions from the warp's blocks.
-        let (scratch, warp) = if class == 0 {
-            (warp, None)
+        // With both directions solved the weft takes its positions from the warp's blocks,
+        // and with `in_blocks` the warp from the weft's.
+        let (scratch, from) = if class == 0 {
+            (warp, in_blocks.then_some(&weft[..]))
         } else {
             (weft, handoff.then_some(&warp[..]))
         };
@@ -613,7 +630,7 @@ impl XpbdGrid {
                         let first = b * LANES;
                         let at = first * cols;
                         let mine = h * LANES * cols..;
-                        if let Some(warp) = warp {
+                        if let Some(warp) = from {
                             chains::handoff::<LANES>(block, warp, b, (rows, cols), kernel);
                         }
                         // The block's rows, as chain 0 onwards.
@@ -622,7 +639,7 @@ impl XpbdGrid {
                             len,
                             (class, cols),
                             (0, LANES.min(count - first)),
-                            warp.is_none().then_some([
+                            from.is_none().then_some([
                                 &x[mine.clone()],
                                 &y[mine.clone()],
                                 &z[mine.clone()],
@@ -638,8 +655,12 @@ impl XpbdGrid {
                     solve(chunk);
                     for (h, block) in chunk.chunks_exact(FIELDS * size).enumerate() {
                         let mine = h * LANES * cols..;
-                        // Positions (fields 0, 1, 2) and, when kept, multipliers (field 8) back.
+                        // Positions (fields 0, 1, 2; not `in_blocks`) and, when kept,
+                        // multipliers (field 8) back.
                         for (f, dst) in [&mut *x, &mut *y, &mut *z].into_iter().enumerate() {
+                            if in_blocks {
+                                break;
+                            }
                             let (src, dst) = (&block[f * size..], &mut dst[mine.clone()]);
                             chains::scatter_rows::<LANES>(src, len, dst, cols, kernel);
                         }
@@ -648,10 +669,24 @@ impl XpbdGrid {
                             chains::scatter_rows::<LANES>(src, len, dst, cols, kernel);
                         }
                     }
-                    // The next round's contacts on these rows (as `Self::contacts` does them).
-                    if let Some(contacts) = &contacts {
+                    // The next round's contacts on these rows (as `Self::contacts` does them),
+                    // or on the blocks, whose fields hold the same particles' positions, start
+                    // positions and inverse masses (lanes past the last row have inverse mass
+                    // 0, which the contacts leave as they are).
+                    let Some(contacts) = &contacts else { return };
+                    if !in_blocks {
                         let prev = [&prev[0][..], &prev[1][..], &prev[2][..]];
                         contacts.rows(first_row, cols, [x, y, z], prev, w);
+                        return;
+                    }
+                    let n = len * LANES;
+                    for block in chunk.chunks_exact_mut(FIELDS * size) {
+                        let (pos, rest) = block.split_at_mut(3 * size);
+                        let (x, yz) = pos.split_at_mut(size);
+                        let (y, z) = yz.split_at_mut(size);
+                        let p0 = [&rest[..n], &rest[size..][..n], &rest[2 * size..][..n]];
+                        let w = &rest[3 * size..][..n];
+                        contacts.row([&mut x[..n], &mut y[..n], &mut z[..n]], p0, w);
                     }
                 });
             return;
@@ -665,13 +700,18 @@ impl XpbdGrid {
             .enumerate()
             .for_each(|(p, chunk)| {
                 for (h, block) in chunk.chunks_exact_mut(FIELDS * size).enumerate() {
-                    let first = (p * PAIR + h) * LANES;
+                    let b = p * PAIR + h;
+                    let first = b * LANES;
+                    if let Some(weft) = from {
+                        // The grid seen transposed: the warp's block from the weft's.
+                        chains::handoff::<LANES>(block, weft, b, (cols, rows), kernel);
+                    }
                     chains::gather::<LANES>(
                         block,
                         len,
                         (class, cols),
                         (first, LANES.min(count - first)),
-                        Some([x, y, z]),
+                        from.is_none().then_some([x, y, z]),
                         starts.then_some([&prev[0], &prev[1], &prev[2]]),
                         w,
                         rest,
