@@ -1531,8 +1531,10 @@ const MASK_SLOT: usize = 50;
 const NEAR_CHUNK: usize = 64;
 
 /// Particles per sub-chunk of a chunk that the contact kernel runs on (or skips) as a whole,
-/// collider by collider.
-const NEAR_SUB: usize = 16;
+/// collider by collider. The kernel's chain of square roots and divisions per particle is
+/// long, so longer runs per call overlap more of them: 64 ran the 256² drape 4–5 % faster
+/// than 16 (fifteenth round), though fewer sub-chunks are skipped.
+const NEAR_SUB: usize = 64;
 
 /// `near[k]`: whether particle `k` of a chunk is not [`surely_clear`] of some collider (at
 /// its current position), as plain loops over the chunk that the compiler vectorises. A
