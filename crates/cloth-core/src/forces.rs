@@ -83,14 +83,18 @@ fn add_air(
             air.drag_coefficient,
             air.lift_coefficient,
             [position[i], position[j], position[k]],
-            (velocity[i] + velocity[j] + velocity[k]) / 3.0,
+            (velocity[i] + velocity[j] + velocity[k]) * THIRD,
             wind,
-        ) / 3.0;
+        ) * THIRD;
         force[i] += f;
         force[j] += f;
         force[k] += f;
     }
 }
+
+/// One third, as the factor of the triangle's mean velocity and of each corner's share of its
+/// air force (a product instead of a division).
+pub(crate) const THIRD: f32 = 1.0 / 3.0;
 
 /// Total air force on one triangle with corners `x` moving at `v_tri` in `wind`: drag
 /// ½ρ|v_rel|²·C_d·A·cos θ along the normal and lift ½ρ|v_rel|²·C_l·A·|cos θ|·sin θ
@@ -112,9 +116,10 @@ pub fn triangle_air_force(
         return Vec3::ZERO;
     }
     let area = 0.5 * cross_len;
-    let n = cross / cross_len;
+    // Reciprocals, one division each (the same operations in the grid paths' air kernel).
+    let n = cross * (1.0 / cross_len);
     let speed = speed_sq.sqrt();
-    let v_hat = v_rel / speed;
+    let v_hat = v_rel * (1.0 / speed);
     let cos = n.dot(v_hat);
     let q = 0.5 * density * speed_sq * area;
     // drag: q·C_d·cos θ·n; lift: q·C_l·|cos θ|·sin θ·l̂ = q·C_l·cos θ·(n − cos θ·v̂).

@@ -1707,16 +1707,19 @@ fn air_force(k: &AirCoefficients, x0: V3, x1: V3, x2: V3, v0: V3, v1: V3, v2: V3
     let cy = e1z * e2x - e2z * e1x;
     let cz = e1x * e2y - e2x * e1y;
     let cross_len = (cx * cx + cy * cy + cz * cz).sqrt();
-    let tx = (v0.0 + v1.0 + v2.0) / 3.0;
-    let ty = (v0.1 + v1.1 + v2.1) / 3.0;
-    let tz = (v0.2 + v1.2 + v2.2) / 3.0;
+    let third = crate::forces::THIRD;
+    let tx = (v0.0 + v1.0 + v2.0) * third;
+    let ty = (v0.1 + v1.1 + v2.1) * third;
+    let tz = (v0.2 + v1.2 + v2.2) * third;
     let (rx, ry, rz) = (k.wind.x - tx, k.wind.y - ty, k.wind.z - tz);
     let speed_sq = rx * rx + ry * ry + rz * rz;
     let live = cross_len > 0.0 && speed_sq > 0.0;
     let area = 0.5 * cross_len;
-    let (nx, ny, nz) = (cx / cross_len, cy / cross_len, cz / cross_len);
+    let inv_len = 1.0 / cross_len;
+    let (nx, ny, nz) = (cx * inv_len, cy * inv_len, cz * inv_len);
     let speed = speed_sq.sqrt();
-    let (hx, hy, hz) = (rx / speed, ry / speed, rz / speed);
+    let inv_speed = 1.0 / speed;
+    let (hx, hy, hz) = (rx * inv_speed, ry * inv_speed, rz * inv_speed);
     let cos = nx * hx + ny * hy + nz * hz;
     let q = 0.5 * k.density * speed_sq * area;
     let qc = q * cos;
@@ -1724,7 +1727,7 @@ fn air_force(k: &AirCoefficients, x0: V3, x1: V3, x2: V3, v0: V3, v1: V3, v2: V3
     let fy = qc * (k.drag * ny + k.lift * (ny - cos * hy));
     let fz = qc * (k.drag * nz + k.lift * (nz - cos * hz));
     if live {
-        (fx / 3.0, fy / 3.0, fz / 3.0)
+        (fx * third, fy * third, fz * third)
     } else {
         (0.0, 0.0, 0.0)
     }
