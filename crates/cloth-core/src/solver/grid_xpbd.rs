@@ -38,7 +38,7 @@
 //! 3. collider contacts with position-level Coulomb friction: the reference's routine
 //!    ([`super::xpbd::contact`]), on the arrays for spheres and planes that do not turn
 //!    ([`contact_soa`], every lane computed and selected, the same bits; run collider by
-//!    collider on the 16-particle sub-chunks not clear of that collider,
+//!    collider on the 64-particle sub-chunks not clear of that collider,
 //!    [`contacts_soa_row`]), per particle for other colliders (chunks clear of every collider
 //!    skipped).
 //!
