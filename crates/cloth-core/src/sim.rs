@@ -588,14 +588,13 @@ impl Simulation {
             //    failed step leaves them set, like the rest of the state)
             if any_pinned {
                 for (i, target) in pin_target.iter().enumerate() {
-                    if let Some(t) = *target {
-                        if particles.inv_mass[i] == 0.0 {
-                            particles.position[i] = t;
-                            particles.velocity[i] = Vec3::ZERO;
-                        }
-                    } else if particles.inv_mass[i] == 0.0 {
-                        particles.velocity[i] = Vec3::ZERO;
+                    if particles.inv_mass[i] != 0.0 {
+                        continue;
                     }
+                    if let Some(t) = *target {
+                        particles.position[i] = t;
+                    }
+                    particles.velocity[i] = Vec3::ZERO;
                 }
             }
 

@@ -166,15 +166,18 @@ fn align_frame() {
 /// as compiled with AVX-512 F + VL (the function `AVX512`) or with AVX2 + FMA (`AVX2`) when
 /// `kernel` asks for that instruction set and the CPU has it, else as compiled for the
 /// baseline target. Both compiled copies start with [`align_frame`]. Written
-/// `dispatched! { /// docs  fn NAME / AVX2 / AVX512(args…) -> Ret = GENERIC; }`.
+/// `dispatched! { /// docs  fn NAME / AVX2 / AVX512(args…) -> Ret = GENERIC; }`, with optional
+/// const parameters after the names (`fn NAME / AVX2 / AVX512 <const N: usize>(args…)`),
+/// which `GENERIC` infers from the arguments.
 macro_rules! dispatched {
     (
         $(#[$attr:meta])*
-        fn $name:ident / $avx2:ident / $avx512:ident ($($arg:ident: $ty:ty),* $(,)?)
+        fn $name:ident / $avx2:ident / $avx512:ident
+            $(<$(const $c:ident: $cty:ty),*>)? ($($arg:ident: $ty:ty),* $(,)?)
             $(-> $ret:ty)? = $generic:path;
     ) => {
         $(#[$attr])*
-        pub(crate) fn $name(kernel: Kernel, $($arg: $ty),*) $(-> $ret)? {
+        pub(crate) fn $name$(<$(const $c: $cty),*>)?(kernel: Kernel, $($arg: $ty),*) $(-> $ret)? {
             match kernel {
                 #[cfg(target_arch = "x86_64")]
                 Kernel::Avx512 if Kernel::Avx512.is_available() => {
@@ -194,14 +197,14 @@ macro_rules! dispatched {
 
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx2,fma")]
-        fn $avx2($($arg: $ty),*) $(-> $ret)? {
+        fn $avx2$(<$(const $c: $cty),*>)?($($arg: $ty),*) $(-> $ret)? {
             align_frame();
             $generic($($arg),*)
         }
 
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-        fn $avx512($($arg: $ty),*) $(-> $ret)? {
+        fn $avx512$(<$(const $c: $cty),*>)?($($arg: $ty),*) $(-> $ret)? {
             align_frame();
             $generic($($arg),*)
         }
@@ -268,55 +271,16 @@ pub(crate) fn chains_interleaved(kernel: Kernel) -> bool {
     kernel == Kernel::Avx512
 }
 
-/// `N` blocks of XPBD's chain solves ([`chains::solve`] at [`chains::LANES`] lanes), with
-/// `kernel` (the stepping thread's choice, passed on to the pool's workers).
-pub(crate) fn xpbd_chains<const N: usize>(
-    kernel: Kernel,
-    blocks: [chains::Block<'_>; N],
-    len: usize,
-    alpha: f32,
-    gamma: f32,
-    keep: bool,
-) {
-    match kernel {
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512 if Kernel::Avx512.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { chains_avx512(blocks, len, alpha, gamma, keep) }
-        }
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 if Kernel::Avx2.is_available() => {
-            // SAFETY: the CPU has every feature (checked on the line above).
-            unsafe { chains_avx2(blocks, len, alpha, gamma, keep) }
-        }
-        _ => chains::solve::<{ chains::LANES }, N>(blocks, len, alpha, gamma, keep),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn chains_avx2<const N: usize>(
-    blocks: [chains::Block<'_>; N],
-    len: usize,
-    alpha: f32,
-    gamma: f32,
-    keep: bool,
-) {
-    align_frame();
-    chains::solve::<{ chains::LANES }, N>(blocks, len, alpha, gamma, keep);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-fn chains_avx512<const N: usize>(
-    blocks: [chains::Block<'_>; N],
-    len: usize,
-    alpha: f32,
-    gamma: f32,
-    keep: bool,
-) {
-    align_frame();
-    chains::solve::<{ chains::LANES }, N>(blocks, len, alpha, gamma, keep);
+dispatched! {
+    /// `N` blocks of XPBD's chain solves ([`chains::solve`] at [`chains::LANES`] lanes), with
+    /// `kernel` (the stepping thread's choice, passed on to the pool's workers).
+    fn xpbd_chains / chains_avx2 / chains_avx512 <const N: usize>(
+        blocks: [chains::Block<'_>; N],
+        len: usize,
+        alpha: f32,
+        gamma: f32,
+        keep: bool,
+    ) = chains::solve_lanes;
 }
 
 dispatched! {

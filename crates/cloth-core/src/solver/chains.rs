@@ -334,6 +334,18 @@ pub(crate) fn solve<const L: usize, const N: usize>(
     }
 }
 
+/// [`solve`] at [`LANES`] lanes (the grid path's blocks), `N` taken from `blocks`.
+#[inline(always)]
+pub(crate) fn solve_lanes<const N: usize>(
+    blocks: [Block<'_>; N],
+    len: usize,
+    alpha: f32,
+    gamma: f32,
+    keep: bool,
+) {
+    solve::<LANES, N>(blocks, len, alpha, gamma, keep);
+}
+
 /// What a block's multipliers (field 8) hold when its chains are solved.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Multipliers {

@@ -657,12 +657,11 @@ impl XpbdGrid {
                         let mine = h * LANES * cols..;
                         // Positions (fields 0, 1, 2; not `in_blocks`) and, when kept,
                         // multipliers (field 8) back.
-                        for (f, dst) in [&mut *x, &mut *y, &mut *z].into_iter().enumerate() {
-                            if in_blocks {
-                                break;
+                        if !in_blocks {
+                            for (f, dst) in [&mut *x, &mut *y, &mut *z].into_iter().enumerate() {
+                                let (src, dst) = (&block[f * size..], &mut dst[mine.clone()]);
+                                chains::scatter_rows::<LANES>(src, len, dst, cols, kernel);
                             }
-                            let (src, dst) = (&block[f * size..], &mut dst[mine.clone()]);
-                            chains::scatter_rows::<LANES>(src, len, dst, cols, kernel);
                         }
                         if keep {
                             let (src, dst) = (&block[8 * size..], &mut lam[mine]);
