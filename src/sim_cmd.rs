@@ -698,13 +698,19 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
             "interrupted".to_string(),
         ),
     };
-    // Structural strain of the final state: median, 99th and 99.9th percentiles, maximum.
-    let q = cloth_core::diagnostics::strain_quantiles(
-        sim.topology(),
-        &sim.particles().position,
-        SpringClass::Structural,
-        &[0.5, 0.99, 0.999, 1.0],
-    );
+    // Structural and shear strain of the final state: median, 99th and 99.9th percentiles,
+    // maximum. (The shear diagonals show a cloth whose cells collapsed in shear, a "fishnet",
+    // which the structural strain alone does not.)
+    let quantiles = |class| {
+        cloth_core::diagnostics::strain_quantiles(
+            sim.topology(),
+            &sim.particles().position,
+            class,
+            &[0.5, 0.99, 0.999, 1.0],
+        )
+    };
+    let q = quantiles(SpringClass::Structural);
+    let qs = quantiles(SpringClass::Shear);
     if let Some(path) = &args.report {
         let report = serde_json::json!({
             "format": "cloth-report-1",
@@ -724,6 +730,9 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
             "median_frame_particle_substeps_per_second": median_throughput,
             "status": status_json,
             "final_structural_strain": { "p50": q[0], "p99": q[1], "p99_9": q[2], "max": q[3] },
+            "final_shear_strain": qs.iter().all(|v| v.is_finite()).then(|| {
+                serde_json::json!({ "p50": qs[0], "p99": qs[1], "p99_9": qs[2], "max": qs[3] })
+            }),
         });
         write_atomic(path, &serde_json::to_vec_pretty(&report)?)
             .with_context(|| format!("writing the report {}", path.display()))?;
@@ -745,6 +754,16 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         100.0 * q[2],
         100.0 * q[3]
     );
+    // (A cloth without shear springs, e.g. one built from a mesh, has no such line.)
+    if qs.iter().all(|v| v.is_finite()) {
+        println!(
+            "shear strain at the end: median {:.3}%, p99 {:.3}%, p99.9 {:.3}%, max {:.3}%",
+            100.0 * qs[0],
+            100.0 * qs[1],
+            100.0 * qs[2],
+            100.0 * qs[3]
+        );
+    }
     if cfg.self_collision.is_some() {
         println!(
             "self-contact: at most {max_self_intersections} intersecting triangle pairs in a frame"
