@@ -42,7 +42,7 @@ for r in $(seq 1 "$rounds"); do
   "$peer" "$n" "$seconds" 2>&1 | tee -a "$log" | grep -E '^(taichi|c\+\+)|median' || true
   for t in 1 2; do
     out=$("$cloth" sim peer-ball "${args[@]}" --frames "$frames" --threads "$t" \
-      --report "$log.json" 2>&1 | tail -1 || true)
+      --report "$log.json" 2>&1 | grep "^done:" | tail -1 || true)
     med=$(python3 -c "import json; print('%.4g' % json.load(open('$log.json'))['median_frame_particle_substeps_per_second'])")
     echo "cloth threads=$t median-frame: $med   ($out)"
     echo "cloth threads=$t median-frame: $med" >> "$log"
