@@ -754,7 +754,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         100.0 * q[2],
         100.0 * q[3]
     );
-    // (A cloth without shear springs, e.g. one built from a mesh, has no such line.)
+    // (A cloth without shear springs has no such line: its quantiles are NaN.)
     if qs.iter().all(|v| v.is_finite()) {
         println!(
             "shear strain at the end: median {:.3}%, p99 {:.3}%, p99.9 {:.3}%, max {:.3}%",
