@@ -699,8 +699,9 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         ),
     };
     // Structural and shear strain of the final state: median, 99th and 99.9th percentiles,
-    // maximum. (The shear diagonals show a cloth whose cells collapsed in shear, a "fishnet",
-    // which the structural strain alone does not.)
+    // maximum; `None` for a class the cloth has no spring of. (The shear diagonals show a
+    // cloth whose cells collapsed in shear, a "fishnet", which the structural strain alone
+    // does not.)
     let quantiles = |class| {
         cloth_core::diagnostics::strain_quantiles(
             sim.topology(),
@@ -709,8 +710,14 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
             &[0.5, 0.99, 0.999, 1.0],
         )
     };
-    let q = quantiles(SpringClass::Structural);
-    let qs = quantiles(SpringClass::Shear);
+    let strains = [
+        ("structural", quantiles(SpringClass::Structural)),
+        ("shear", quantiles(SpringClass::Shear)),
+    ];
+    let json = |q: &Option<Vec<f32>>| {
+        q.as_ref()
+            .map(|q| serde_json::json!({ "p50": q[0], "p99": q[1], "p99_9": q[2], "max": q[3] }))
+    };
     if let Some(path) = &args.report {
         let report = serde_json::json!({
             "format": "cloth-report-1",
@@ -729,10 +736,8 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
             "median_frame_ms": 1e3 * median_frame,
             "median_frame_particle_substeps_per_second": median_throughput,
             "status": status_json,
-            "final_structural_strain": { "p50": q[0], "p99": q[1], "p99_9": q[2], "max": q[3] },
-            "final_shear_strain": qs.iter().all(|v| v.is_finite()).then(|| {
-                serde_json::json!({ "p50": qs[0], "p99": qs[1], "p99_9": qs[2], "max": qs[3] })
-            }),
+            "final_structural_strain": json(&strains[0].1),
+            "final_shear_strain": json(&strains[1].1),
         });
         write_atomic(path, &serde_json::to_vec_pretty(&report)?)
             .with_context(|| format!("writing the report {}", path.display()))?;
@@ -747,22 +752,16 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         args.threads,
         kernel.name()
     );
-    println!(
-        "structural strain at the end: median {:.3}%, p99 {:.3}%, p99.9 {:.3}%, max {:.3}%",
-        100.0 * q[0],
-        100.0 * q[1],
-        100.0 * q[2],
-        100.0 * q[3]
-    );
-    // (A cloth without shear springs has no such line: its quantiles are NaN.)
-    if qs.iter().all(|v| v.is_finite()) {
-        println!(
-            "shear strain at the end: median {:.3}%, p99 {:.3}%, p99.9 {:.3}%, max {:.3}%",
-            100.0 * qs[0],
-            100.0 * qs[1],
-            100.0 * qs[2],
-            100.0 * qs[3]
-        );
+    for (name, q) in &strains {
+        if let Some(q) = q {
+            println!(
+                "{name} strain at the end: median {:.3}%, p99 {:.3}%, p99.9 {:.3}%, max {:.3}%",
+                100.0 * q[0],
+                100.0 * q[1],
+                100.0 * q[2],
+                100.0 * q[3]
+            );
+        }
     }
     if cfg.self_collision.is_some() {
         println!(

@@ -34,6 +34,21 @@ fn report(path: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(path).expect("report")).expect("report is JSON")
 }
 
+/// The first mesh of an OBJ file, parsed by tobj (polygons kept; `single_index`: one index
+/// per vertex, positions and texture coordinates aligned).
+fn obj_mesh(path: &Path, single_index: bool) -> tobj::Mesh {
+    let (mut models, _) = tobj::load_obj(
+        path,
+        &tobj::LoadOptions {
+            single_index,
+            triangulate: false,
+            ..Default::default()
+        },
+    )
+    .expect("tobj parses it");
+    models.swap_remove(0).mesh
+}
+
 /// Every built-in scene runs headless for 2 s of simulated time with status "ok".
 #[test]
 fn every_builtin_scene_runs_ok() {
@@ -99,21 +114,12 @@ fn exports_parse_with_independent_parsers() {
         .collect();
     objs.sort();
     assert_eq!(objs, ["frame_0004.obj", "frame_0008.obj", "frame_0012.obj"]);
-    let (models, _) = tobj::load_obj(
-        out.join("frame_0012.obj"),
-        &tobj::LoadOptions {
-            single_index: false,
-            triangulate: false,
-            ..Default::default()
-        },
-    )
-    .expect("tobj parses it");
-    let mesh = &models[0].mesh;
-    assert_eq!(mesh.positions.len(), 100 * 3);
-    assert_eq!(mesh.normals.len(), 100 * 3);
-    assert_eq!(mesh.texcoords.len(), 100 * 2);
-    assert_eq!(mesh.indices.len(), 2 * 9 * 9 * 3);
-    for n in mesh.normals.chunks(3) {
+    let frame = &obj_mesh(&out.join("frame_0012.obj"), false);
+    assert_eq!(frame.positions.len(), 100 * 3);
+    assert_eq!(frame.normals.len(), 100 * 3);
+    assert_eq!(frame.texcoords.len(), 100 * 2);
+    assert_eq!(frame.indices.len(), 2 * 9 * 9 * 3);
+    for n in frame.normals.chunks(3) {
         let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
         assert!((len - 1.0).abs() < 1e-5, "normal length {len}");
     }
@@ -150,8 +156,7 @@ fn exports_parse_with_independent_parsers() {
         .zip(last)
         .map(|(b, d)| [b[0] + d[0], b[1] + d[1], b[2] + d[2]])
         .collect();
-    let mut obj: Vec<[f32; 3]> = models[0]
-        .mesh
+    let mut obj: Vec<[f32; 3]> = frame
         .positions
         .chunks(3)
         .map(|p| [p[0], p[1], p[2]])
@@ -276,16 +281,7 @@ fn final_strains_match_the_exported_frame() {
         stdout.contains("shear strain at the end: median"),
         "{stdout}"
     );
-    let (models, _) = tobj::load_obj(
-        out.join("frame_0060.obj"),
-        &tobj::LoadOptions {
-            single_index: true,
-            triangulate: false,
-            ..Default::default()
-        },
-    )
-    .expect("tobj parses it");
-    let mesh = &models[0].mesh;
+    let mesh = &obj_mesh(&out.join("frame_0060.obj"), true);
     let n = 10;
     let mut grid = vec![[f64::NAN; 3]; n * n];
     for (p, uv) in mesh.positions.chunks(3).zip(mesh.texcoords.chunks(2)) {

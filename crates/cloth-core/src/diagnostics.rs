@@ -620,15 +620,16 @@ pub(crate) fn grid_row_lengths(
 
 /// Quantiles of the stretch strain (|L| − L0)/L0 over every spring of `class` at `position`
 /// (nearest rank: the smallest strain that at least a fraction `q` of the springs do not
-/// exceed), one per entry of `quantiles` (each in `0 ..= 1`; 1 is the maximum). `NaN` for an
-/// empty class. For reports, outside the step: it sorts a copy of the strains.
+/// exceed), one per entry of `quantiles` (each in `0 ..= 1`; 1 is the maximum). `None` when
+/// the cloth has no spring of that class. For reports, outside the step: it sorts a copy of the
+/// strains.
 #[must_use]
 pub fn strain_quantiles(
     topology: &Topology,
     position: &[Vec3],
     class: SpringClass,
     quantiles: &[f64],
-) -> Vec<f32> {
+) -> Option<Vec<f32>> {
     let mut strains: Vec<f32> = SpringKind::ALL
         .iter()
         .filter(|k| k.class() == class)
@@ -638,17 +639,15 @@ pub fn strain_quantiles(
                 / s.rest_length
         })
         .collect();
+    if strains.is_empty() {
+        return None;
+    }
     strains.sort_by(f32::total_cmp);
-    quantiles
-        .iter()
-        .map(|&q| {
-            if strains.is_empty() {
-                return f32::NAN;
-            }
-            let rank = (q.clamp(0.0, 1.0) * strains.len() as f64).ceil() as usize;
-            strains[rank.clamp(1, strains.len()) - 1]
-        })
-        .collect()
+    let quantile = |q: f64| {
+        let rank = (q.clamp(0.0, 1.0) * strains.len() as f64).ceil() as usize;
+        strains[rank.clamp(1, strains.len()) - 1]
+    };
+    Some(quantiles.iter().map(|&q| quantile(q)).collect())
 }
 
 /// A conservative estimate of the largest substep at which symplectic Euler and Verlet stay

@@ -135,6 +135,7 @@ fn settled_strain(mut sim: Simulation) -> Vec<f32> {
         cloth_core::SpringClass::Structural,
         &[0.999, 1.0],
     )
+    .expect("structural springs")
 }
 
 /// Runs `steps` steps with `kernel` on this thread; every position's and velocity's bits.

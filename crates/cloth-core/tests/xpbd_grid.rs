@@ -231,10 +231,12 @@ fn strain_quantiles_measure_uniform_stretch() {
         &sim.particles().position,
         SpringClass::Structural,
         &q,
-    );
+    )
+    .expect("structural springs");
     assert!(at_rest.iter().all(|s| s.abs() < 1e-5), "{at_rest:?}");
     let scaled: Vec<Vec3> = sim.particles().position.iter().map(|p| *p * 1.03).collect();
-    let got = strain_quantiles(sim.topology(), &scaled, SpringClass::Structural, &q);
+    let got = strain_quantiles(sim.topology(), &scaled, SpringClass::Structural, &q)
+        .expect("structural springs");
     assert!(got.iter().all(|s| (s - 0.03).abs() < 1e-5), "{got:?}");
 }
 
