@@ -703,12 +703,22 @@ pub(crate) fn instability_hint(config: &SimConfig, min_mass: f32) -> String {
         );
     }
     let limit = explicit_stability_limit(config, min_mass);
-    if h > limit {
+    let needed = f64::from(config.dt) / f64::from(limit);
+    let most = crate::config::MAX_SUBSTEPS;
+    if h > limit && needed > f64::from(most) {
+        format!(
+            "the time step is too large for the stiffness, and no allowed `substeps` is \
+             enough: substep h = {h:.3e} s, but this material needs h < ~{limit:.3e} s, \
+             about {needed:.1e} substeps per step where at most {most} are allowed; lower the \
+             stiffness, make the particles heavier (the cloth's density), shorten `dt`, or \
+             use xpbd or implicit-euler, which are stable at large steps"
+        )
+    } else if h > limit {
         format!(
             "the time step is too large for the stiffness: substep h = {h:.3e} s, but this \
              material needs h < ~{limit:.3e} s; raise `substeps` to at least {}, or lower \
              the stiffness",
-            (config.dt / limit).ceil()
+            needed.ceil()
         )
     } else {
         format!(

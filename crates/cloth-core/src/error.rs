@@ -100,6 +100,19 @@ pub(crate) mod check {
         }
     }
 
+    /// `value` a length in `(0, max]` (m).
+    pub fn length(name: &str, value: f32, max: f32) -> Result<()> {
+        if value.is_finite() && value > 0.0 && value <= max {
+            Ok(())
+        } else {
+            Err(ClothError::invalid(
+                name,
+                value,
+                format!("a length in (0, {max}] m"),
+            ))
+        }
+    }
+
     /// `value` finite and `>= 0`.
     pub fn non_negative(name: &str, value: f32) -> Result<()> {
         if value.is_finite() && value >= 0.0 {

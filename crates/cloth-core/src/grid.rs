@@ -9,6 +9,10 @@ use crate::topology::{Spring, SpringKind, Topology};
 /// Largest number of rows or columns a grid may have.
 pub const MAX_GRID_SIDE: usize = 8192;
 
+/// Largest width or height a grid may have, m (10 km). Far beyond any cloth, and far below
+/// where `f32` squared lengths overflow (about 1.8·10¹⁹ m).
+pub const MAX_CLOTH_EXTENT: f32 = 1.0e4;
+
 /// Which plane the cloth lies in before the builder's rotation is applied.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Orientation {
@@ -172,14 +176,16 @@ impl GridBuilder {
         }
     }
 
-    /// Overall size: `width` along the columns and `height` along the rows, m.
+    /// Overall size: `width` along the columns and `height` along the rows, m, each in
+    /// `(0, MAX_CLOTH_EXTENT]` ([`MAX_CLOTH_EXTENT`], 10 km).
     pub fn size(mut self, width: f32, height: f32) -> Self {
         self.extent = Extent::Size { width, height };
         self
     }
 
     /// Distance between neighbouring particles instead of an overall size: `along_cols`
-    /// between columns, `along_rows` between rows, m.
+    /// between columns, `along_rows` between rows, m, each > 0 with the whole cloth at most
+    /// [`MAX_CLOTH_EXTENT`] (10 km) wide and high.
     pub fn spacing(mut self, along_cols: f32, along_rows: f32) -> Self {
         self.extent = Extent::Spacing {
             along_cols,
@@ -265,8 +271,8 @@ impl GridBuilder {
         }
         let (dx, dy) = match self.extent {
             Extent::Size { width, height } => {
-                check::positive("grid.width", width)?;
-                check::positive("grid.height", height)?;
+                check::length("grid.width", width, MAX_CLOTH_EXTENT)?;
+                check::length("grid.height", height, MAX_CLOTH_EXTENT)?;
                 (
                     width / (self.cols - 1) as f32,
                     height / (self.rows - 1) as f32,
@@ -276,8 +282,10 @@ impl GridBuilder {
                 along_cols,
                 along_rows,
             } => {
-                check::positive("grid.spacing.along_cols", along_cols)?;
-                check::positive("grid.spacing.along_rows", along_rows)?;
+                // The whole cloth at most MAX_CLOTH_EXTENT wide and high.
+                let most = |n: usize| MAX_CLOTH_EXTENT / (n - 1) as f32;
+                check::length("grid.spacing.along_cols", along_cols, most(self.cols))?;
+                check::length("grid.spacing.along_rows", along_rows, most(self.rows))?;
                 (along_cols, along_rows)
             }
         };

@@ -31,7 +31,7 @@ use crate::config::{
     StabilityLimits, XpbdSettings,
 };
 use crate::error::{ClothError, Result};
-use crate::grid::{Corner, Edge, GridBuilder, MAX_GRID_SIDE, Mass, Orientation};
+use crate::grid::{Corner, Edge, GridBuilder, MAX_CLOTH_EXTENT, MAX_GRID_SIDE, Mass, Orientation};
 use crate::presets::tune_for_integrator;
 use crate::sim::Simulation;
 
@@ -917,16 +917,37 @@ impl Scene {
                 ));
             }
         }
-        if let Some(size) = c.size {
-            positive("cloth.size", size[0]).and(positive("cloth.size", size[1]))?;
+        if let Some(size) = c.size
+            && !size
+                .iter()
+                .all(|&v| v.is_finite() && v > 0.0 && v <= MAX_CLOTH_EXTENT)
+        {
+            return Err(invalid(
+                "cloth.size",
+                size,
+                &format!("[width, height] each in (0, {MAX_CLOTH_EXTENT}] m"),
+            ));
         }
         if let Some(sp) = c.spacing {
-            positive("cloth.spacing", sp[0]).and(positive("cloth.spacing", sp[1]))?;
+            // Along the columns, then the rows: the whole cloth at most MAX_CLOTH_EXTENT.
+            let [rows, cols] = c.resolution.map(|n| n as f32);
+            let most = [cols, rows].map(|n| MAX_CLOTH_EXTENT / (n - 1.0));
+            if !(0..2).all(|i| sp[i].is_finite() && sp[i] > 0.0 && sp[i] <= most[i]) {
+                return Err(invalid(
+                    "cloth.spacing",
+                    sp,
+                    &format!(
+                        "[along_cols, along_rows] each > 0, with (cols − 1) and (rows − 1) \
+                         spacings at most {MAX_CLOTH_EXTENT} m: here at most [{}, {}] m",
+                        most[0], most[1]
+                    ),
+                ));
+            }
         }
-        if c.size.is_some() && c.spacing.is_some() {
+        if let (Some(_), Some(spacing)) = (c.size, c.spacing) {
             return Err(invalid(
                 "cloth.spacing",
-                c.spacing,
+                spacing,
                 "either `size` or `spacing`, not both",
             ));
         }

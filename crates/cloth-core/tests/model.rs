@@ -428,19 +428,34 @@ fn bad_builder_arguments_are_errors_naming_the_argument() {
     assert_invalid(GridBuilder::new(0, 4).build(), "grid.rows", "2 ..= 8192");
     assert_invalid(GridBuilder::new(4, 1).build(), "grid.cols", "2 ..= 8192");
     assert_invalid(GridBuilder::new(4, 9000).build(), "grid.cols", "2 ..= 8192");
-    for bad in [0.0, -1.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
-        assert_invalid(g().size(bad, 1.0).build(), "grid.width", "> 0");
-        assert_invalid(g().size(1.0, bad).build(), "grid.height", "> 0");
+    // Lengths: the cloth at most 10 km wide and high (spacing × 3 on a 4 × 4 grid), far
+    // below where f32 squared lengths overflow.
+    for bad in [
+        0.0,
+        -1.0,
+        f32::NAN,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        1.0e30,
+        10_001.0,
+    ] {
+        assert_invalid(g().size(bad, 1.0).build(), "grid.width", "(0, 10000] m");
+        assert_invalid(g().size(1.0, bad).build(), "grid.height", "(0, 10000] m");
+    }
+    assert!(g().size(10_000.0, 10_000.0).build().is_ok());
+    for bad in [0.0, -1.0, f32::NAN, f32::INFINITY, 1.0e30, 3334.0] {
         assert_invalid(
             g().spacing(bad, 0.1).build(),
             "grid.spacing.along_cols",
-            "> 0",
+            "(0, 3333.3333] m",
         );
         assert_invalid(
             g().spacing(0.1, bad).build(),
             "grid.spacing.along_rows",
-            "> 0",
+            "(0, 3333.3333] m",
         );
+    }
+    for bad in [0.0, -1.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
         assert_invalid(
             g().mass(Mass::PerParticle(bad)).build(),
             "grid.mass.per_particle",
@@ -472,11 +487,11 @@ fn bad_builder_arguments_are_errors_naming_the_argument() {
             "unit quaternion",
         );
     }
-    // A size so large that positions overflow f32 is caught too.
+    // A size so large that positions would overflow f32 is caught by the length bound.
     assert_invalid(
         GridBuilder::new(3, 3).spacing(3e38, 3e38).build(),
-        "grid.size",
-        "finite",
+        "grid.spacing.along_cols",
+        "(0, 5000] m",
     );
 
     let err = g().pin_indices([3, 16]).build().unwrap_err();
@@ -1019,6 +1034,47 @@ fn instability_is_reported_and_state_restored() {
         .expect("the retried step with enough substeps is stable");
     assert_eq!(sim.particles().position[0], target);
     assert_eq!(sim.steps(), s + 1);
+}
+
+/// When no allowed substep count is enough (a cloth of 10⁻⁹ kg/m² needs about 10⁶ substeps
+/// of symplectic Euler per 1/60 s step; at most 100000 are allowed), the hint says so and
+/// names what to change instead of asking for an impossible `substeps`.
+#[test]
+fn instability_hint_says_when_no_allowed_substeps_is_enough() {
+    let cloth = GridBuilder::new(8, 8)
+        .size(0.5, 0.5)
+        .mass(Mass::ArealDensity(1e-9))
+        .pin_corner(Corner::TopLeft)
+        .build()
+        .unwrap();
+    let config = SimConfig {
+        integrator: Integrator::SymplecticEuler,
+        substeps: 1,
+        dt: 1.0 / 60.0,
+        ..SimConfig::default()
+    };
+    let min_mass = cloth
+        .particles
+        .mass
+        .iter()
+        .copied()
+        .fold(f32::INFINITY, f32::min);
+    let limit = cloth_core::diagnostics::explicit_stability_limit(&config, min_mass);
+    assert!(
+        config.dt / limit > 1e5,
+        "the case needs more than 100000 substeps"
+    );
+    let mut sim = Simulation::new(cloth, config).unwrap();
+    let err = (0..10)
+        .find_map(|_| sim.step().err())
+        .expect("the feather-light cloth must be reported unstable");
+    let ClothError::Unstable { ref hint, .. } = err else {
+        panic!("expected Unstable, got {err:?}");
+    };
+    assert!(hint.contains("no allowed `substeps` is enough"), "{hint}");
+    assert!(hint.contains("at most 100000"), "{hint}");
+    assert!(hint.contains("density") && hint.contains("xpbd"), "{hint}");
+    assert!(!hint.contains("raise `substeps` to at least"), "{hint}");
 }
 
 /// Forward Euler multiplies the energy of an undamped spring mode by 1 + (ωh)² every

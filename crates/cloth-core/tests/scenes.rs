@@ -138,13 +138,27 @@ fn wrong_types_are_errors() {
 /// Out-of-range and non-finite values name the key, its line and the allowed range.
 #[test]
 fn out_of_range_values_name_key_line_and_range() {
-    let cases: [(&str, &str, &str, usize, &str); 10] = [
+    let cases: [(&str, &str, &str, usize, &str); 12] = [
         (
             "resolution = [8, 8]",
             "resolution = [0, 8]",
             "cloth.resolution",
             3,
             "2 ..= 8192",
+        ),
+        (
+            "size = [1.0, 1.0]",
+            "size = [1e30, 1.0]",
+            "cloth.size",
+            4,
+            "(0, 10000] m",
+        ),
+        (
+            "size = [1.0, 1.0]",
+            "spacing = [2000.0, 0.1]",
+            "cloth.spacing",
+            4,
+            "at most [1428.5714, 1428.5714] m",
         ),
         (
             "size = [1.0, 1.0]",
