@@ -35,9 +35,9 @@ pub enum Format {
 /// Arguments of `cloth sim`.
 #[derive(Debug, Args)]
 pub struct SimArgs {
-    /// A built-in scene (see `cloth scenes`) or a TOML scene file.
-    #[arg(value_name = "SCENE", default_value = "drape")]
-    pub scene: String,
+    /// A built-in scene (see `cloth scenes`) or a TOML scene file [default: drape].
+    #[arg(value_name = "SCENE")]
+    pub scene: Option<String>,
     /// Frames to run (steps of the scene's dt). Default: the scene's duration.
     #[arg(long, value_name = "N", conflicts_with = "seconds", value_parser = parse_positive_u64)]
     pub frames: Option<u64>,
@@ -93,7 +93,10 @@ pub struct SimArgs {
     /// Save a checkpoint every N frames (into --out, or the current folder), atomically.
     #[arg(long, value_name = "N", value_parser = parse_positive_u64)]
     pub checkpoint_every: Option<u64>,
-    /// Continue a run from a checkpoint file to the same result it would have had.
+    /// Continue a run from a checkpoint file to the same result it would have had. The
+    /// checkpoint carries its scene: SCENE, --set, --resolution and --integrator may repeat
+    /// the original command line, and anything that changes the scene is refused. --frames
+    /// and --seconds count from the start of the run.
     #[arg(long, value_name = "CHECKPOINT")]
     pub resume: Option<PathBuf>,
     /// Run even if the memory estimate exceeds the memory available.
@@ -422,6 +425,11 @@ fn run(args: &SimArgs) -> Result<ExitCode> {
     })
 }
 
+/// The scene `cloth sim` runs: the SCENE argument, or the drape.
+fn scene_name(args: &SimArgs) -> &str {
+    args.scene.as_deref().unwrap_or("drape")
+}
+
 fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
     // 1. The scene: from a checkpoint, or from the file/built-in with overrides.
     let mut overrides = args.set.clone();
@@ -454,10 +462,31 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
     };
     let scene = match &checkpoint {
         Some(cp) => {
-            Scene::from_toml(&cp.scene_toml, "checkpoint").map_err(|e| bad(e.to_string()))?
+            let saved =
+                Scene::from_toml(&cp.scene_toml, "checkpoint").map_err(|e| bad(e.to_string()))?;
+            // The command line may repeat the original run's scene and overrides, but not
+            // change them: a checkpoint continues its own scene, nothing is silently dropped.
+            if args.scene.is_some() || !overrides.is_empty() {
+                let given = match &args.scene {
+                    Some(name) => scene::load(name, &overrides).map(|(s, _)| s),
+                    None => {
+                        Scene::from_toml_with_overrides(&cp.scene_toml, "checkpoint", &overrides)
+                    }
+                }
+                .map_err(|e| bad(e.to_string()))?;
+                if given.to_toml() != saved.to_toml() {
+                    return Err(bad(format!(
+                        "--resume continues the checkpoint's own scene (`{}`), and the scene \
+                         given by SCENE, --set, --resolution or --integrator differs from it; \
+                         drop them to continue, or start a new run without --resume",
+                        saved.name
+                    )));
+                }
+            }
+            saved
         }
         None => {
-            scene::load(&args.scene, &overrides)
+            scene::load(scene_name(args), &overrides)
                 .map_err(|e| bad(e.to_string()))?
                 .0
         }
@@ -490,7 +519,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
 
     let mut sim = scene
         .build()
-        .map_err(|e| bad(format!("{}: {e}", args.scene)))?;
+        .map_err(|e| bad(format!("{}: {e}", scene_name(args))))?;
     let cfg = *sim.config();
     let frames_total = match (args.frames, args.seconds) {
         (Some(f), _) => f,
@@ -501,6 +530,14 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
     let (mut records, mut glb, mut frame, mut stepping) =
         (Vec::new(), GlbFrames::default(), 0u64, 0.0f64);
     if let Some(cp) = checkpoint {
+        if cp.frames_done >= frames_total {
+            return Err(bad(format!(
+                "the checkpoint is at frame {} already, and this run asks for {frames_total} \
+                 frames in all (--frames and --seconds count from the start of the run): \
+                 nothing is left to run; ask for more than {} frames",
+                cp.frames_done, cp.frames_done
+            )));
+        }
         sim.restore(&cp.state)
             .map_err(|e| bad(format!("checkpoint: {e}")))?;
         records = cp.records;
@@ -568,10 +605,13 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         let t0 = Instant::now();
         let result = sim.step();
         let wall = t0.elapsed().as_secs_f64();
-        stepping += wall;
-        frame_wall.push(wall);
         let stats = match result {
-            Ok(s) => s,
+            Ok(s) => {
+                // The frames done only: a failed step is undone, so it is no work done.
+                stepping += wall;
+                frame_wall.push(wall);
+                s
+            }
             Err(ClothError::Unstable {
                 step,
                 reason,
@@ -671,20 +711,18 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
 
     let kernel = cloth_core::simd::kernel_for(&sim);
     let substeps_done = records.len() as f64 * f64::from(cfg.substeps);
-    let throughput = if stepping > 0.0 {
-        particles as f64 * substeps_done / stepping
-    } else {
-        0.0
-    };
-    // Throughput of the median frame: robust against the odd slow frame on a busy machine
-    // (the figure the peer benchmark scripts quote too).
+    // `None` (null in the report, "n/a" in the summary) when no frame was done: no figure
+    // is made up for work that did not happen.
+    let throughput = (!records.is_empty() && stepping > 0.0)
+        .then(|| particles as f64 * substeps_done / stepping);
+    // Throughput of the median frame of this run: robust against the odd slow frame on a
+    // busy machine (the figure the peer benchmark scripts quote too).
     frame_wall.sort_by(f64::total_cmp);
-    let median_frame = frame_wall.get(frame_wall.len() / 2).copied().unwrap_or(0.0);
-    let median_throughput = if median_frame > 0.0 {
-        particles as f64 * f64::from(cfg.substeps) / median_frame
-    } else {
-        0.0
-    };
+    let median_frame = frame_wall
+        .get(frame_wall.len() / 2)
+        .copied()
+        .filter(|&t| t > 0.0);
+    let median_throughput = median_frame.map(|t| particles as f64 * f64::from(cfg.substeps) / t);
     let (status_json, code, status_line) = match &status {
         Status::Ok => (serde_json::json!("ok"), ExitCode::SUCCESS, "ok".to_string()),
         Status::Unstable { step, reason } => (
@@ -733,7 +771,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
             "frames": records,
             "sim_wall_seconds": stepping,
             "particle_substeps_per_second": throughput,
-            "median_frame_ms": 1e3 * median_frame,
+            "median_frame_ms": median_frame.map(|t| 1e3 * t),
             "median_frame_particle_substeps_per_second": median_throughput,
             "status": status_json,
             "final_structural_strain": json(&strains[0].1),
@@ -742,13 +780,17 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         write_atomic(path, &serde_json::to_vec_pretty(&report)?)
             .with_context(|| format!("writing the report {}", path.display()))?;
     }
+    let figure = |x: Option<f64>, text: &dyn Fn(f64) -> String| x.map_or("n/a".into(), text);
     println!(
-        "done: {} frames, status {status_line}, {:.3} s stepping, {:.2} ms/frame, {:.3e} particle-substeps/s (median frame {:.3e}; {} threads, kernel {})",
+        "done: {} frames, status {status_line}, {:.3} s stepping, {} ms/frame, {} particle-substeps/s (median frame {}; {} threads, kernel {})",
         records.len(),
         stepping,
-        1e3 * stepping / (records.len().max(1)) as f64,
-        throughput,
-        median_throughput,
+        figure(
+            (!records.is_empty()).then(|| 1e3 * stepping / records.len() as f64),
+            &|x| format!("{x:.2}")
+        ),
+        figure(throughput, &|x| format!("{x:.3e}")),
+        figure(median_throughput, &|x| format!("{x:.3e}")),
         args.threads,
         kernel.name()
     );

@@ -362,6 +362,26 @@ fn resume_and_threads_give_identical_bits() {
     run(&b, &["--frames", "40", "--checkpoint-every", "20"]);
     let cp = b.join("checkpoint.json");
     assert!(cp.exists());
+    // The checkpoint carries its scene: changing it on resume is refused, not ignored; and
+    // a run that is already as long as asked has nothing left to do.
+    for extra in [
+        &["--set", "cloth.resolution=[8,8]"][..],
+        &["--resolution", "8"],
+        &["--integrator", "xpbd"],
+        &["hanging"],
+        &["flag", "--set", "forces.damping=0.5"],
+    ] {
+        let mut args = vec!["sim", "--frames", "60", "--resume", s(&cp)];
+        args.extend_from_slice(extra);
+        bad(
+            &args,
+            &["--resume continues the checkpoint's own scene (`flag`)"],
+        );
+    }
+    bad(
+        &["sim", "--frames", "20", "--resume", s(&cp)],
+        &["at frame 20 already", "ask for more than 20 frames"],
+    );
     run(&b, &["--frames", "60", "--resume", s(&cp)]);
     run(&c, &["--frames", "60", "--threads", "2"]);
     let last = |d: &Path| std::fs::read(d.join("frame_0060.obj")).expect("frame 60");
@@ -401,6 +421,35 @@ fn unstable_runs_exit_3_with_report() {
     if step > 0 {
         assert!(out.join(format!("frame_{step:04}.obj")).exists());
     }
+
+    // Unstable at its very first frame (a cloth thrown at 999 m/s into the ball): no frame
+    // was done, so no throughput is made up: null in the report, "n/a" in the summary.
+    let (code, out, err) = cloth(&[
+        "sim",
+        "drape",
+        "--resolution",
+        "16",
+        "--frames",
+        "5",
+        "--set",
+        "cloth.velocity=[999,0,0]",
+        "--report",
+        s(&rep),
+    ]);
+    assert_eq!(code, 3, "{err}");
+    let r = report(&rep);
+    assert_eq!(r["status"]["unstable"]["step"], 0, "{r}");
+    for key in [
+        "particle_substeps_per_second",
+        "median_frame_ms",
+        "median_frame_particle_substeps_per_second",
+    ] {
+        assert!(r[key].is_null(), "{key}: {}", r[key]);
+    }
+    assert!(
+        out.contains("n/a particle-substeps/s (median frame n/a;"),
+        "{out}"
+    );
 }
 
 fn bad(args: &[&str], needles: &[&str]) {
