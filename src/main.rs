@@ -63,8 +63,8 @@ enum Command {
         /// Frames to step before rendering.
         #[arg(long, value_name = "N", default_value = "120", value_parser = sim_cmd::parse_positive_u64)]
         frames: u64,
-        /// The PNG file to write.
-        #[arg(long, value_name = "FILE")]
+        /// The PNG file to write (its name ends in .png; its folder must exist).
+        #[arg(long, value_name = "FILE", value_parser = parse_png)]
         png: PathBuf,
         /// Image size.
         #[arg(long, value_name = "WxH", default_value = "800x600", value_parser = parse_size)]
@@ -89,8 +89,9 @@ enum Command {
         /// Initial window size.
         #[arg(long, value_name = "WxH", default_value = "1280x800", value_parser = parse_size)]
         size: [u32; 2],
-        /// Save the last frame, panel included, to this PNG (needs --frames).
-        #[arg(long, value_name = "FILE", requires = "frames")]
+        /// Save the last frame, panel included, to this PNG (needs --frames; the name ends in
+        /// .png and its folder must exist).
+        #[arg(long, value_name = "FILE", requires = "frames", value_parser = parse_png)]
         screenshot: Option<PathBuf>,
     },
 }
@@ -132,6 +133,14 @@ impl SceneArgs {
             integrator: self.integrator.unwrap_or_else(|| scene.integrator()),
             scene,
         })
+    }
+}
+
+fn parse_png(s: &str) -> Result<PathBuf, String> {
+    let path = PathBuf::from(s);
+    match path.extension() {
+        Some(ext) if ext.eq_ignore_ascii_case("png") => Ok(path),
+        _ => Err("allowed a file name ending in .png (the image is written as PNG)".into()),
     }
 }
 
@@ -188,6 +197,12 @@ fn main() -> ExitCode {
                 Ok(c) => c,
                 Err(code) => return code,
             };
+            if let Some(path) = &screenshot
+                && let Err(e) = sim_cmd::check_writable_file(path, "screenshot")
+            {
+                eprintln!("error: {e}");
+                return ExitCode::from(2);
+            }
             let options = cloth_view::app::ViewOptions {
                 scene: chosen.scene,
                 resolution: chosen.resolution,
@@ -227,6 +242,11 @@ fn render(
         Ok(s) => s,
         Err(code) => return code,
     };
+    // Checked before stepping and rendering: a bad path costs nothing.
+    if let Err(e) = sim_cmd::check_writable_file(png, "PNG") {
+        eprintln!("error: {e}");
+        return ExitCode::from(2);
+    }
     for _ in 0..frames {
         if let Err(e) = sim.step() {
             eprintln!("error: {e}");

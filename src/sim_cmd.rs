@@ -390,7 +390,7 @@ fn check_writable_dir(dir: &Path) -> Result<()> {
     Ok(())
 }
 
-fn check_writable_file(path: &Path, what: &str) -> Result<()> {
+pub(crate) fn check_writable_file(path: &Path, what: &str) -> Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),

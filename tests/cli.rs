@@ -86,6 +86,36 @@ fn bad_flags_name_the_flag_and_the_allowed_range() {
             vec!["--size", "1 ..= 8192"],
         ),
         (
+            vec!["render", "--png", "x.jpg", "--frames", "1"],
+            vec!["--png", "ending in .png"],
+        ),
+        (
+            vec![
+                "render",
+                "--png",
+                "/no/such/folder/x.png",
+                "--resolution",
+                "4",
+                "--frames",
+                "1",
+            ],
+            vec!["PNG folder /no/such/folder does not exist"],
+        ),
+        (
+            vec!["view", "--frames", "2", "--screenshot", "shot.bmp"],
+            vec!["--screenshot", "ending in .png"],
+        ),
+        (
+            vec![
+                "view",
+                "--frames",
+                "2",
+                "--screenshot",
+                "/no/such/folder/x.png",
+            ],
+            vec!["screenshot folder /no/such/folder does not exist"],
+        ),
+        (
             vec!["view", "--frames", "zero"],
             vec!["--frames", "allowed an integer >= 1"],
         ),
