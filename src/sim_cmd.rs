@@ -631,7 +631,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         let mut record = FrameRecord::new(frame, &stats);
         if cfg.self_collision.is_some() {
             // Outside the stepping time: a diagnostic of the frame, not part of the step.
-            let contact = sim.self_contact(None);
+            let contact = sim.self_contact(None)?;
             record.self_intersections = Some(contact.self_intersections);
             record.min_self_distance = Some(
                 contact

@@ -134,7 +134,9 @@ impl Simulation {
     ///
     /// # Errors
     /// [`ClothError::InvalidArgument`] when the state does not fit this simulation (other
-    /// particle or collider count) or holds non-finite values; nothing changes then.
+    /// particle or collider count, an inverse mass other than 0 or the particle's own
+    /// 1/mass, a collider of another kind) or holds non-finite values or a negative time;
+    /// nothing changes then.
     pub fn restore(&mut self, state: &SimState) -> Result<()> {
         let n = self.particles.len();
         for (name, len) in [
@@ -162,14 +164,34 @@ impl Simulation {
             .iter()
             .chain(&state.velocity)
             .flatten()
-            .all(|x| x.is_finite())
-            && state.inv_mass.iter().all(|w| w.is_finite() && *w >= 0.0)
-            && state.time.is_finite();
+            .all(|x| x.is_finite());
         if !finite {
             return Err(ClothError::invalid(
                 "state",
                 "non-finite values",
-                "finite positions, velocities and masses",
+                "finite positions and velocities",
+            ));
+        }
+        if !(state.time.is_finite() && state.time >= 0.0) {
+            return Err(ClothError::invalid(
+                "state.time",
+                state.time,
+                "a finite time >= 0 s",
+            ));
+        }
+        // A particle is pinned (0) or free with its own mass: a saved state cannot change
+        // the cloth's masses.
+        if let Some(i) = (0..n).find(|&i| {
+            let w = state.inv_mass[i];
+            w != 0.0 && w != 1.0 / self.particles.mass[i]
+        }) {
+            return Err(ClothError::invalid(
+                format!("state.inv_mass[{i}]"),
+                state.inv_mass[i],
+                format!(
+                    "0 (pinned) or {} (1/mass of particle {i})",
+                    1.0 / self.particles.mass[i]
+                ),
             ));
         }
         // Each saved shape must be a valid collider of the same kind as the scene's.
@@ -191,13 +213,6 @@ impl Simulation {
                 ..c.clone()
             }
             .validate(i)?;
-        }
-        if !finite {
-            return Err(ClothError::invalid(
-                "state",
-                "non-finite values",
-                "finite positions, velocities and masses",
-            ));
         }
         self.time = state.time;
         self.steps = state.steps;
@@ -438,7 +453,13 @@ impl Simulation {
     /// is not its neighbour, looking within `range` m (see [`crate::collide::intersect`]).
     /// `range` defaults to the self-collision thickness when `None`, or to the cloth's
     /// largest rest spacing when self-collision is off. Not allocating after the first call.
-    pub fn self_contact(&mut self, range: Option<f32>) -> crate::collide::intersect::SelfContact {
+    ///
+    /// # Errors
+    /// [`ClothError::InvalidArgument`] when `range` is not a finite length > 0.
+    pub fn self_contact(
+        &mut self,
+        range: Option<f32>,
+    ) -> Result<crate::collide::intersect::SelfContact> {
         let range = range.unwrap_or_else(|| match self.config.self_collision {
             Some(sc) => sc.thickness,
             None => self

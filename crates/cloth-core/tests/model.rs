@@ -1195,3 +1195,68 @@ fn pin_and_unpin_between_steps() {
     sim.step().unwrap();
     assert_eq!(sim.particles().position[i], held);
 }
+
+/// `restore` takes back a saved state bit for bit (and the next step from it is the same
+/// step), and refuses a state that does not fit the simulation, naming the field, with
+/// nothing changed: other counts, non-finite values, a negative time, or an inverse mass
+/// that is neither 0 (pinned) nor the particle's own 1/mass.
+#[test]
+fn restore_takes_back_a_state_and_refuses_one_that_does_not_fit() {
+    let build = || {
+        let cloth = GridBuilder::new(6, 6)
+            .size(0.5, 0.5)
+            .pin_corner(Corner::TopLeft)
+            .build()
+            .unwrap();
+        Simulation::new(cloth, SimConfig::default()).unwrap()
+    };
+    let bits = |x: &[Vec3]| -> Vec<u32> {
+        x.iter()
+            .flat_map(|p| p.to_array().map(f32::to_bits))
+            .collect()
+    };
+    let mut a = build();
+    a.step().unwrap();
+    let mut saved = a.state();
+    // A second particle pinned in the saved state: restoring it pins it.
+    saved.inv_mass[7] = 0.0;
+    a.step().unwrap();
+    let mut b = build();
+    b.restore(&saved).unwrap();
+    assert!(b.particles().is_pinned(7));
+    assert_eq!(b.time(), saved.time);
+    a.restore(&saved).unwrap();
+    a.step().unwrap();
+    b.step().unwrap();
+    assert_eq!(bits(&a.particles().position), bits(&b.particles().position));
+
+    let before = bits(&b.particles().position);
+    let refused = |f: &dyn Fn(&mut cloth_core::SimState), field: &str, allowed: &str| {
+        let mut s = saved.clone();
+        f(&mut s);
+        let mut sim = build();
+        let x = bits(&sim.particles().position);
+        assert_invalid(sim.restore(&s), field, allowed);
+        assert_eq!(bits(&sim.particles().position), x, "{field}: state changed");
+    };
+    refused(
+        &|s| s.inv_mass[5] = 1e30,
+        "state.inv_mass[5]",
+        "0 (pinned) or ",
+    );
+    refused(&|s| s.time = -5.0, "state.time", ">= 0");
+    refused(&|s| s.time = f64::NAN, "state.time", ">= 0");
+    refused(
+        &|s| s.position[3][1] = f32::NAN,
+        "state",
+        "finite positions",
+    );
+    refused(
+        &|s| {
+            s.velocity.pop();
+        },
+        "state.velocity",
+        "36 entries",
+    );
+    assert_eq!(bits(&b.particles().position), before);
+}

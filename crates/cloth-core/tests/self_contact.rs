@@ -21,7 +21,7 @@ fn intersection_counter_sees_a_sheet_folded_through_itself() {
     let rest = cloth.particles.position.clone();
     let tris = cloth.topology.triangles().to_vec();
     let mut check = SelfContactCheck::default();
-    let flat = check.run(&rest, &rest, &tris, 0.05);
+    let flat = check.run(&rest, &rest, &tris, 0.05).expect("run");
     assert_eq!(flat.self_intersections, 0);
     assert!(flat.min_distance.is_infinite(), "{}", flat.min_distance);
 
@@ -38,12 +38,35 @@ fn intersection_counter_sees_a_sheet_folded_through_itself() {
             })
             .collect()
     };
-    let through = check.run(&fold(-0.02, 0.1), &rest, &tris, 0.05);
+    let through = check
+        .run(&fold(-0.02, 0.1), &rest, &tris, 0.05)
+        .expect("run");
     assert!(
         through.self_intersections > 0,
         "the tilted upper half crosses the lower one: {through:?}"
     );
-    let above = check.run(&fold(0.02, 0.0), &rest, &tris, 0.05);
+    let above = check
+        .run(&fold(0.02, 0.0), &rest, &tris, 0.05)
+        .expect("run");
+    // Bad arguments are errors naming the argument, not wrong answers or panics.
+    for bad in [f32::NAN, -1.0, 0.0, f32::INFINITY] {
+        let err = check.run(&rest, &rest, &tris, bad).unwrap_err().to_string();
+        assert!(err.contains("self_contact.range"), "{err}");
+    }
+    let err = check
+        .run(&rest, &rest[1..], &tris, 0.05)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("self_contact.rest"), "{err}");
+    let err = check
+        .run(&rest[..50], &rest[..50], &tris, 0.05)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("self_contact.triangles") && err.contains("0 ..= 49"),
+        "{err}"
+    );
+
     assert_eq!(above.self_intersections, 0, "{above:?}");
     // 2 cm between the layers; a little less across the slanted triangles at the fold.
     assert!(
@@ -68,7 +91,7 @@ fn run_self_contact_scene(name: &str, settle: f64) -> (f32, f32) {
     let mut closest = f32::INFINITY;
     for frame in 1..=frames {
         let stats = sim.step().unwrap_or_else(|e| panic!("{name}: {e}"));
-        let contact = sim.self_contact(None);
+        let contact = sim.self_contact(None).expect("self contact");
         assert_eq!(
             contact.self_intersections, 0,
             "{name}: frame {frame}: {} intersecting triangle pairs",
@@ -119,7 +142,12 @@ fn mesh_scene_drapes_without_penetrating_the_table() {
     for _ in 0..(scene.duration * 60.0).round() as u64 {
         let stats = sim.step().expect("step");
         deepest = deepest.max(stats.max_penetration);
-        assert_eq!(sim.self_contact(None).self_intersections, 0);
+        assert_eq!(
+            sim.self_contact(None)
+                .expect("self contact")
+                .self_intersections,
+            0
+        );
     }
     eprintln!("mesh: deepest penetration {deepest} m (thickness {thickness} m)");
     assert!(deepest <= thickness, "deepest {deepest} m");

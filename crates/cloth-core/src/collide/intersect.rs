@@ -21,6 +21,7 @@ use glam::Vec3;
 use robust::{Coord, Coord3D, orient2d, orient3d};
 
 use super::mesh::closest_point_on_triangle;
+use crate::error::{ClothError, Result, check};
 
 /// What [`SelfContactCheck::run`] found.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -64,7 +65,44 @@ impl SelfContactCheck {
     /// particle–triangle distance within `range` (m) over non-neighbour pairs (neighbours:
     /// the particle is a corner of the triangle, or the triangle was closer than `range` in
     /// the `rest` shape).
+    ///
+    /// # Errors
+    /// [`ClothError::InvalidArgument`] when `range` is not a finite length > 0, when `rest`
+    /// and `position` differ in length, or when a triangle names a particle that does not
+    /// exist.
     pub fn run(
+        &mut self,
+        position: &[Vec3],
+        rest: &[Vec3],
+        triangles: &[[u32; 3]],
+        range: f32,
+    ) -> Result<SelfContact> {
+        check::positive("self_contact.range", range)?;
+        if rest.len() != position.len() {
+            return Err(ClothError::invalid(
+                "self_contact.rest",
+                rest.len(),
+                format!("{} positions (one per particle)", position.len()),
+            ));
+        }
+        if let Some(t) = triangles
+            .iter()
+            .find(|t| t.iter().any(|&i| i as usize >= position.len()))
+        {
+            return Err(ClothError::invalid(
+                "self_contact.triangles",
+                t,
+                format!(
+                    "particle indices in 0 ..= {}",
+                    position.len().saturating_sub(1)
+                ),
+            ));
+        }
+        Ok(self.run_checked(position, rest, triangles, range))
+    }
+
+    /// [`run`](Self::run) on arguments already checked.
+    fn run_checked(
         &mut self,
         position: &[Vec3],
         rest: &[Vec3],
