@@ -6,7 +6,7 @@ use glam::Vec3;
 use crate::collide::{Collider, Friction};
 use crate::config::{Air, Integrator, Material, SimConfig, SpringParams};
 use crate::diagnostics::explicit_stability_limit;
-use crate::error::Result;
+use crate::error::{ClothError, Result};
 use crate::grid::{GridBuilder, Mass};
 use crate::sim::Simulation;
 
@@ -67,7 +67,18 @@ pub fn hanging(n: usize, integrator: Integrator) -> Result<Simulation> {
 ///
 /// The one difference from the peer: our contact also projects a particle that is inside the
 /// ball back to its surface, where the peer only removes the inward velocity.
+///
+/// # Errors
+/// [`ClothError::InvalidArgument`] for `n` outside `3 ..= 8192` (the peer's step takes
+/// ⌊(1/60)/(0.04/n)⌋ substeps, none below n = 3).
 pub fn peer_ball(n: usize) -> Result<Simulation> {
+    if !(3..=crate::grid::MAX_GRID_SIDE).contains(&n) {
+        return Err(ClothError::invalid(
+            "peer_ball n",
+            n,
+            format!("3 ..= {}", crate::grid::MAX_GRID_SIDE),
+        ));
+    }
     let q = 1.0 / n as f32;
     let (ox, oz) = (0.037_153_453_f32, 0.027_561_575_f32);
     let centre = -0.5 + 0.5 * (n - 1) as f32 * q;

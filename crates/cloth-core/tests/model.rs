@@ -487,6 +487,14 @@ fn bad_builder_arguments_are_errors_naming_the_argument() {
             "unit quaternion",
         );
     }
+    // The peer scene's formulas give no substep below n = 3.
+    for n in [0, 2, 9000] {
+        assert_invalid(
+            cloth_core::presets::peer_ball(n),
+            "peer_ball n",
+            "3 ..= 8192",
+        );
+    }
     // A size so large that positions would overflow f32 is caught by the length bound.
     assert_invalid(
         GridBuilder::new(3, 3).spacing(3e38, 3e38).build(),

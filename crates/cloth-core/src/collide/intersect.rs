@@ -255,8 +255,12 @@ fn o3(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> i8 {
 }
 
 /// Whether closed triangles `p` and `q` (in general position or not) intersect. Exact.
+/// A triangle with a non-finite corner has no position, so it meets nothing (`false`).
 #[must_use]
 pub fn triangles_intersect(p: [Vec3; 3], q: [Vec3; 3]) -> bool {
+    if !p.iter().chain(&q).all(|v| v.is_finite()) {
+        return false;
+    }
     (0..3).any(|k| segment_meets_triangle(p[k], p[(k + 1) % 3], q))
         || (0..3).any(|k| segment_meets_triangle(q[k], q[(k + 1) % 3], p))
 }
@@ -351,6 +355,12 @@ mod tests {
     #[test]
     fn exact_cases() {
         let base = t([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+        // A corner that is not a position meets nothing (it used to "intersect").
+        assert!(!triangles_intersect([Vec3::NAN; 3], base));
+        assert!(!triangles_intersect(
+            base,
+            t([0.2, 0.2, f32::INFINITY], [0.2, 0.2, 1.0], [2.0, 2.0, 0.5])
+        ));
         // Piercing.
         assert!(triangles_intersect(
             base,
