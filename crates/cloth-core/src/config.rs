@@ -83,8 +83,14 @@ impl Material {
     fn validate(&self) -> Result<()> {
         for kind in SpringKind::ALL {
             let p = self.params(kind);
-            check::non_negative(&format!("material.{}.stiffness", kind.name()), p.stiffness)?;
-            check::non_negative(&format!("material.{}.damping", kind.name()), p.damping)?;
+            check::non_negative(
+                &format!("config.material.{}.stiffness", kind.name()),
+                p.stiffness,
+            )?;
+            check::non_negative(
+                &format!("config.material.{}.damping", kind.name()),
+                p.damping,
+            )?;
         }
         Ok(())
     }
@@ -165,13 +171,13 @@ impl Air {
     }
 
     fn validate(&self) -> Result<()> {
-        check::non_negative("air.density", self.density)?;
-        check::non_negative("air.drag_coefficient", self.drag_coefficient)?;
-        check::non_negative("air.lift_coefficient", self.lift_coefficient)?;
-        check::finite_vec("air.wind", self.wind)?;
+        check::non_negative("config.air.density", self.density)?;
+        check::non_negative("config.air.drag_coefficient", self.drag_coefficient)?;
+        check::non_negative("config.air.lift_coefficient", self.lift_coefficient)?;
+        check::finite_vec("config.air.wind", self.wind)?;
         if let Some(g) = self.gust {
-            check::in_range("air.gust.amplitude", g.amplitude, 0.0, 1.0)?;
-            check::positive("air.gust.frequency", g.frequency)?;
+            check::in_range("config.air.gust.amplitude", g.amplitude, 0.0, 1.0)?;
+            check::positive("config.air.gust.frequency", g.frequency)?;
         }
         Ok(())
     }

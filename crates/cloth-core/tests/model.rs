@@ -580,40 +580,40 @@ fn bad_configs() -> Vec<(SimConfig, &'static str, &'static str)> {
         };
         *p = SpringParams::new(-1.0, 0.1);
         let name = match kind {
-            SpringKind::Warp => "material.warp.stiffness",
-            SpringKind::Weft => "material.weft.stiffness",
-            SpringKind::Shear => "material.shear.stiffness",
-            SpringKind::Bend => "material.bend.stiffness",
+            SpringKind::Warp => "config.material.warp.stiffness",
+            SpringKind::Weft => "config.material.weft.stiffness",
+            SpringKind::Shear => "config.material.shear.stiffness",
+            SpringKind::Bend => "config.material.bend.stiffness",
         };
         v.push((c, name, ">= 0"));
     }
     let mut c = d();
     c.material.bend.damping = f32::NAN;
-    v.push((c, "material.bend.damping", ">= 0"));
+    v.push((c, "config.material.bend.damping", ">= 0"));
     let mut c = d();
     c.air.density = -1.2;
-    v.push((c, "air.density", ">= 0"));
+    v.push((c, "config.air.density", ">= 0"));
     let mut c = d();
     c.air.drag_coefficient = f32::INFINITY;
-    v.push((c, "air.drag_coefficient", ">= 0"));
+    v.push((c, "config.air.drag_coefficient", ">= 0"));
     let mut c = d();
     c.air.lift_coefficient = -0.2;
-    v.push((c, "air.lift_coefficient", ">= 0"));
+    v.push((c, "config.air.lift_coefficient", ">= 0"));
     let mut c = d();
     c.air.wind = Vec3::new(f32::INFINITY, 0.0, 0.0);
-    v.push((c, "air.wind", "finite"));
+    v.push((c, "config.air.wind", "finite"));
     let mut c = d();
     c.air.gust = Some(Gust {
         amplitude: 2.0,
         frequency: 0.5,
     });
-    v.push((c, "air.gust.amplitude", "0 ..= 1"));
+    v.push((c, "config.air.gust.amplitude", "0 ..= 1"));
     let mut c = d();
     c.air.gust = Some(Gust {
         amplitude: 0.5,
         frequency: 0.0,
     });
-    v.push((c, "air.gust.frequency", "> 0"));
+    v.push((c, "config.air.gust.frequency", "> 0"));
     let mut c = d();
     c.limits.max_stretch_ratio = 1.0;
     v.push((c, "config.limits.max_stretch_ratio", "> 1"));
