@@ -198,10 +198,9 @@ fn main() -> ExitCode {
                 Err(code) => return code,
             };
             if let Some(path) = &screenshot
-                && let Err(e) = sim_cmd::check_writable_file(path, "screenshot")
+                && let Err(code) = writable(path, "screenshot")
             {
-                eprintln!("error: {e}");
-                return ExitCode::from(2);
+                return code;
             }
             let options = cloth_view::app::ViewOptions {
                 scene: chosen.scene,
@@ -220,6 +219,15 @@ fn main() -> ExitCode {
             }
         }
     }
+}
+
+/// Whether the image file `path` can be written, checked before any work: else the error
+/// is printed and the exit status is 2 (bad input).
+fn writable(path: &std::path::Path, what: &str) -> Result<(), ExitCode> {
+    sim_cmd::check_writable_file(path, what).map_err(|e| {
+        eprintln!("error: {e}");
+        ExitCode::from(2)
+    })
 }
 
 fn build(args: &Chosen) -> Result<Simulation, ExitCode> {
@@ -243,9 +251,8 @@ fn render(
         Err(code) => return code,
     };
     // Checked before stepping and rendering: a bad path costs nothing.
-    if let Err(e) = sim_cmd::check_writable_file(png, "PNG") {
-        eprintln!("error: {e}");
-        return ExitCode::from(2);
+    if let Err(code) = writable(png, "PNG") {
+        return code;
     }
     for _ in 0..frames {
         if let Err(e) = sim.step() {

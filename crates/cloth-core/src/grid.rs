@@ -13,6 +13,12 @@ pub const MAX_GRID_SIDE: usize = 8192;
 /// where `f32` squared lengths overflow (about 1.8·10¹⁹ m).
 pub const MAX_CLOTH_EXTENT: f32 = 1.0e4;
 
+/// Largest spacing between `points` particles in a line (≥ 2) that keeps the line within
+/// [`MAX_CLOTH_EXTENT`], m.
+pub(crate) fn max_spacing(points: usize) -> f32 {
+    MAX_CLOTH_EXTENT / (points - 1) as f32
+}
+
 /// Which plane the cloth lies in before the builder's rotation is applied.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Orientation {
@@ -282,10 +288,9 @@ impl GridBuilder {
                 along_cols,
                 along_rows,
             } => {
-                // The whole cloth at most MAX_CLOTH_EXTENT wide and high.
-                let most = |n: usize| MAX_CLOTH_EXTENT / (n - 1) as f32;
-                check::length("grid.spacing.along_cols", along_cols, most(self.cols))?;
-                check::length("grid.spacing.along_rows", along_rows, most(self.rows))?;
+                let (most_cols, most_rows) = (max_spacing(self.cols), max_spacing(self.rows));
+                check::length("grid.spacing.along_cols", along_cols, most_cols)?;
+                check::length("grid.spacing.along_rows", along_rows, most_rows)?;
                 (along_cols, along_rows)
             }
         };

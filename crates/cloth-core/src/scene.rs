@@ -929,9 +929,9 @@ impl Scene {
             ));
         }
         if let Some(sp) = c.spacing {
-            // Along the columns, then the rows: the whole cloth at most MAX_CLOTH_EXTENT.
-            let [rows, cols] = c.resolution.map(|n| n as f32);
-            let most = [cols, rows].map(|n| MAX_CLOTH_EXTENT / (n - 1.0));
+            // Along the columns, then the rows (the resolution is [rows, cols], checked above).
+            let [rows, cols] = c.resolution.map(|n| n as usize);
+            let most = [cols, rows].map(crate::grid::max_spacing);
             if !(0..2).all(|i| sp[i].is_finite() && sp[i] > 0.0 && sp[i] <= most[i]) {
                 return Err(invalid(
                     "cloth.spacing",

@@ -53,6 +53,13 @@ fn intersection_counter_sees_a_sheet_folded_through_itself() {
         let err = check.run(&rest, &rest, &tris, bad).unwrap_err().to_string();
         assert!(err.contains("self_contact.range"), "{err}");
     }
+    let mut torn = rest.clone();
+    torn[7].y = f32::NAN;
+    let err = check
+        .run(&torn, &rest, &tris, 0.05)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("self_contact.position[7]"), "{err}");
     let err = check
         .run(&rest, &rest[1..], &tris, 0.05)
         .unwrap_err()

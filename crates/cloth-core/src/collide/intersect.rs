@@ -68,8 +68,8 @@ impl SelfContactCheck {
     ///
     /// # Errors
     /// [`ClothError::InvalidArgument`] when `range` is not a finite length > 0, when `rest`
-    /// and `position` differ in length, or when a triangle names a particle that does not
-    /// exist.
+    /// and `position` differ in length or hold a non-finite position, or when a triangle
+    /// names a particle that does not exist.
     pub fn run(
         &mut self,
         position: &[Vec3],
@@ -84,6 +84,19 @@ impl SelfContactCheck {
                 rest.len(),
                 format!("{} positions (one per particle)", position.len()),
             ));
+        }
+        // Checked once here, so the pair tests below need not check every corner again.
+        for (name, points) in [
+            ("self_contact.position", position),
+            ("self_contact.rest", rest),
+        ] {
+            if let Some(i) = points.iter().position(|p| !p.is_finite()) {
+                return Err(ClothError::invalid(
+                    format!("{name}[{i}]"),
+                    points[i],
+                    "finite coordinates",
+                ));
+            }
         }
         if let Some(t) = triangles
             .iter()
@@ -184,7 +197,7 @@ impl SelfContactCheck {
                     }
                     let p = tri.map(|i| position[i as usize]);
                     let q = other.map(|i| position[i as usize]);
-                    if triangles_intersect(p, q) {
+                    if finite_triangles_intersect(p, q) {
                         result.self_intersections += 1;
                     }
                 }
@@ -258,9 +271,11 @@ fn o3(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> i8 {
 /// A triangle with a non-finite corner has no position, so it meets nothing (`false`).
 #[must_use]
 pub fn triangles_intersect(p: [Vec3; 3], q: [Vec3; 3]) -> bool {
-    if !p.iter().chain(&q).all(|v| v.is_finite()) {
-        return false;
-    }
+    p.iter().chain(&q).all(|v| v.is_finite()) && finite_triangles_intersect(p, q)
+}
+
+/// [`triangles_intersect`] for corners known to be finite.
+fn finite_triangles_intersect(p: [Vec3; 3], q: [Vec3; 3]) -> bool {
     (0..3).any(|k| segment_meets_triangle(p[k], p[(k + 1) % 3], q))
         || (0..3).any(|k| segment_meets_triangle(q[k], q[(k + 1) % 3], p))
 }
