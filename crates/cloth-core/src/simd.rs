@@ -294,7 +294,7 @@ dispatched! {
         a: [&[f32]; 3],
         b: [&[f32]; 3],
         near: &mut [bool],
-    ) = grid_kernel::ccd_mask;
+    ) -> bool = grid_kernel::ccd_mask;
 }
 
 dispatched! {

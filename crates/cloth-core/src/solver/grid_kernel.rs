@@ -843,15 +843,14 @@ pub(crate) fn band(
             if job.soa_contacts {
                 result.contacts += contacts_soa(job, s, &mut out);
             }
-            if premasked {
-                ccd_mask_soa(job, s, &band.state[s % 3], &out, &mut band.near);
-            }
+            let candidates =
+                premasked && ccd_mask_soa(job, s, &band.state[s % 3], &out, &mut band.near);
             // The per-particle passes (other colliders, continuous-collision candidates) on
             // the row as `Vec3`.
             let per_particle = if job.colliders.is_empty() {
                 false
             } else if premasked {
-                band.near[..cols].contains(&true)
+                candidates
             } else {
                 !job.soa_contacts || job.ccd
             };
@@ -1173,7 +1172,7 @@ fn ccd_mask_soa(
     a: &[Vec<f32>; 6],
     b: &[&mut [f32]; 6],
     near: &mut [bool],
-) {
+) -> bool {
     let cols = job.cols;
     ccd_mask(
         job.colliders,
@@ -1182,13 +1181,14 @@ fn ccd_mask_soa(
         [&a[0][..cols], &a[1][..cols], &a[2][..cols]],
         [&b[0][..cols], &b[1][..cols], &b[2][..cols]],
         &mut near[..cols],
-    );
+    )
 }
 
 /// [`ccd_mask_soa`] on any run of particles: `near[k]` is cleared exactly for the particles
 /// `k` (inverse mass `w[k]`, start `a`, end `b`, by component) that [`ccd::resolve_in`] with
 /// substep `h` would leave alone at every collider without marching. Every collider must be
-/// a sphere or a plane that does not turn.
+/// a sphere or a plane that does not turn. Returns whether any `near[k]` is set (so callers
+/// need not scan the mask for a run with none).
 #[inline(always)]
 pub(crate) fn ccd_mask(
     colliders: &[Collider],
@@ -1197,13 +1197,14 @@ pub(crate) fn ccd_mask(
     [ax, ay, az]: [&[f32]; 3],
     [bx, by, bz]: [&[f32]; 3],
     near: &mut [bool],
-) {
+) -> bool {
     use crate::collide::Shape;
     let cols = near.len();
     let w = &w[..cols];
     let (ax, ay, az) = (&ax[..cols], &ay[..cols], &az[..cols]);
     let (bx, by, bz) = (&bx[..cols], &by[..cols], &bz[..cols]);
     near.fill(false);
+    let mut any = false;
     for col in colliders {
         let (sphere, p, r, n) = match col.shape {
             Shape::Sphere { center, radius } => (true, center, radius, Vec3::Y),
@@ -1256,29 +1257,39 @@ pub(crate) fn ccd_mask(
             let ([mut sx, mut sy, mut sz], [mut qx, mut qy, mut qz]) =
                 ([[0.0_f32; LANES]; 3], [[0.0_f32; LANES]; 3]);
             let (mut len, mut db) = ([0.0_f32; LANES], [0.0_f32; LANES]);
+            // Whether any lane is left, reduced in the loop (a scan of `skip` after it read
+            // the bytes just stored: a stalled load, 4 % of the peer scene's time).
+            let mut live = false;
             for l in 0..LANES {
                 let (k, s, q, length, d) =
                     cheap(w[l], [ax[l], ay[l], az[l]], [bx[l], by[l], bz[l]]);
                 (skip[l], len[l], db[l]) = (k, length, d);
+                live |= !k;
                 [sx[l], sy[l], sz[l]] = s;
                 [qx[l], qy[l], qz[l]] = q;
             }
-            if skip.iter().all(|&s| s) {
+            if !live {
                 continue;
             }
+            let mut found = false;
             for l in 0..LANES {
                 let other = rest([sx[l], sy[l], sz[l]], [qx[l], qy[l], qz[l]], len[l], db[l]);
-                near[l] |= !(skip[l] | other);
+                let candidate = !(skip[l] | other);
+                near[l] |= candidate;
+                found |= candidate;
             }
+            any |= found;
         }
         for (k, near) in nt.iter_mut().enumerate() {
             let (skip, s, q, len, db) =
                 cheap(wt[k], [axt[k], ayt[k], azt[k]], [bxt[k], byt[k], bzt[k]]);
             if !skip && !rest(s, q, len, db) {
                 *near = true;
+                any = true;
             }
         }
     }
+    any
 }
 
 /// `Shape::distance` of a sphere (`sphere`: centre `p`, radius `r`) or a plane (point `p`,
@@ -1461,11 +1472,12 @@ fn springs(
             let (dx, dy, dz) = (lx * inv, ly * inv, lz * inv);
             let (wx, wy, wz) = (bvx[j] - avx[j], bvy[j] - avy[j], bvz[j] - avz[j]);
             let magnitude = k * (len - rest[j]) + c * (wx * dx + wy * dy + wz * dz);
-            let ok = len > 0.0;
+            // A zero-length spring's lanes hold NaN: the substep is then discarded and run
+            // on the reference path (`bad`), so no select is needed here.
             bad |= len <= 0.0;
-            ox[j] = if ok { magnitude * dx } else { 0.0 };
-            oy[j] = if ok { magnitude * dy } else { 0.0 };
-            oz[j] = if ok { magnitude * dz } else { 0.0 };
+            ox[j] = magnitude * dx;
+            oy[j] = magnitude * dy;
+            oz[j] = magnitude * dz;
         }
         degenerate |= bad;
         fx[i..i + LANES].copy_from_slice(&ox);

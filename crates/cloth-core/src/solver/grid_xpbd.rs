@@ -1002,7 +1002,7 @@ impl XpbdGrid {
                     let n = NEAR_CHUNK.min(cols - c0);
                     let i0 = r * cols + c0;
                     let (row, all) = (c0..c0 + n, i0..i0 + n);
-                    if masked {
+                    let any = if masked {
                         crate::simd::ccd_mask(
                             kernel,
                             colliders,
@@ -1011,11 +1011,13 @@ impl XpbdGrid {
                             [&prev[0][all.clone()], &prev[1][all.clone()], &prev[2][all]],
                             [&x[row.clone()], &y[row.clone()], &z[row]],
                             &mut near[..n],
-                        );
-                    }
+                        )
+                    } else {
+                        true
+                    };
                     // Runs of candidates k .. l, gathered, resolved and written back (most
-                    // chunks have none: one test of the whole chunk first).
-                    if !near[..n].contains(&true) {
+                    // chunks have none: the mask says so first).
+                    if !any {
                         continue;
                     }
                     let mut k = 0;
