@@ -260,8 +260,8 @@ impl Band {
         }
         for slot in &mut self.state {
             for a in slot {
-                // Two lanes of NaN padding past the row: the spring lanes that do not exist
-                // read them (NaN is never `<= 0`, so no false zero-length report).
+                // NaN padding past the row, up to whole chunks and two lanes more: the spring
+                // lanes that do not exist read them.
                 a.clear();
                 a.resize(cols.next_multiple_of(LANES) + 2, f32::NAN);
             }
@@ -537,11 +537,15 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         b.prepare(cols);
     }
     if plan.persist {
-        if scratch.next_rows.len() != 6 * n {
+        if scratch.next_rows.len() != 6 * n + ROW_SLACK {
             // Both state buffers start on a cache line (a row's arrays then load and store
             // whole lines, none split across two), half a page apart from each other.
-            let slot = if scratch.rows.len() == 6 * n { 32 } else { 0 };
-            scratch.next_rows.reset(6 * n, slot);
+            let slot = if scratch.rows.len() == 6 * n + ROW_SLACK {
+                32
+            } else {
+                0
+            };
+            scratch.next_rows.reset(6 * n + ROW_SLACK, slot);
         }
     } else {
         scratch.next_position.resize(n, Vec3::ZERO);
@@ -742,9 +746,18 @@ pub(crate) fn band(
     let first = r0.saturating_sub(2);
     let half = 0.5 * job.h;
     let drift = job.scheme == Scheme::Verlet;
-    // Rows first ..= first + 2 into the ring.
-    for s in first..(first + 3).min(rows) {
-        load_row(job, s, drift, half, &mut band.state[s % 3]);
+    // The old state's rows are read in place from the row-blocked arrays when they hold it
+    // as the springs need it (no Verlet drift); else copied into the ring, rows
+    // first ..= first + 2 first.
+    let in_place = match job.src {
+        Source::Rows(all) if !drift => Some(all),
+        _ => None,
+    };
+    let width = cols.next_multiple_of(LANES) + 2;
+    if in_place.is_none() {
+        for s in first..(first + 3).min(rows) {
+            load_row(job, s, drift, half, &mut band.state[s % 3]);
+        }
     }
     for s in first..r1 {
         // Springs whose first end is in row s.
@@ -756,20 +769,21 @@ pub(crate) fn band(
                 continue;
             }
             // All `cols` lanes are computed (whole vectors, no scalar remainder); the lanes
-            // past the row's `m` springs read the NaN padding of the state rows and are
+            // past the row's `m` springs read the ring's NaN padding or, in place, the next
+            // component's values ([`old_row`]), are not checked for a zero length, and are
             // reset to the class's padding value afterwards.
             let m = cols - a_dc.max(b_dc);
             let full = cols.next_multiple_of(LANES);
             let rest = &job.rest[class][s * cols..][..full];
-            let (a, b) = if dr == 0 {
-                (&band.state[s % 3], &band.state[s % 3])
-            } else {
-                (&band.state[s % 3], &band.state[(s + dr) % 3])
-            };
+            let (a, b) = (
+                old_row(&band.state, in_place, cols, width, s),
+                old_row(&band.state, in_place, cols, width, s + dr),
+            );
             let [fx, fy, fz] = &mut band.force[class][s % 3];
             result.degenerate |= springs(
                 k,
                 c,
+                m,
                 [
                     &a[0][a_dc..][..full],
                     &a[1][a_dc..][..full],
@@ -804,10 +818,7 @@ pub(crate) fn band(
             && s + 1 >= r0
             && s + 1 < rows
         {
-            let ring = |r: usize| -> [&[f32]; 6] {
-                let [x, y, z, vx, vy, vz] = &band.state[r % 3];
-                [x, y, z, vx, vy, vz]
-            };
+            let ring = |r: usize| old_row(&band.state, in_place, cols, width, r);
             let [[ax, ay, az], [bx, by, bz]] = &mut band.air[s % 2];
             super::grid_xpbd::air_row(
                 ring(s),
@@ -835,7 +846,8 @@ pub(crate) fn band(
                     (out, Some((px, pv)))
                 }
             };
-            particle_row(job, s, &band.state, &band.force, &band.air, &mut out);
+            let state = old_row(&band.state, in_place, cols, width, s);
+            particle_row(job, s, state, &band.force, &band.air, &mut out);
             // With the discrete contacts done on the arrays, the rows that also run continuous
             // collision get their candidates there too (old positions = the ring's row, which
             // Verlet's drift has changed: it keeps the per-particle mask).
@@ -843,8 +855,7 @@ pub(crate) fn band(
             if job.soa_contacts {
                 result.contacts += contacts_soa(job, s, &mut out);
             }
-            let candidates =
-                premasked && ccd_mask_soa(job, s, &band.state[s % 3], &out, &mut band.near);
+            let candidates = premasked && ccd_mask_soa(job, s, state, &out, &mut band.near);
             // The per-particle passes (other colliders, continuous-collision candidates) on
             // the row as `Vec3`.
             let per_particle = if job.colliders.is_empty() {
@@ -883,7 +894,7 @@ pub(crate) fn band(
             }
         }
         // Row s + 3 replaces row s in the ring (needed by the springs of row s + 1).
-        if s + 3 < rows && s + 1 < r1 {
+        if in_place.is_none() && s + 3 < rows && s + 1 < r1 {
             load_row(job, s + 3, drift, half, &mut band.state[s % 3]);
         }
     }
@@ -1169,7 +1180,7 @@ fn near_mask(job: &Job<'_>, start: &[Vec3], px: &[Vec3], near: &mut [bool]) {
 fn ccd_mask_soa(
     job: &Job<'_>,
     s: usize,
-    a: &[Vec<f32>; 6],
+    a: [&[f32]; 6],
     b: &[&mut [f32]; 6],
     near: &mut [bool],
 ) -> bool {
@@ -1343,6 +1354,43 @@ fn mark(
     }
 }
 
+/// Row `r` of the old state (x, y, z, vx, vy, vz), each component `width` floats
+/// (`cols` rounded up to whole chunks, plus the two a spring class's column offset reads past
+/// them): in place in the row-blocked arrays `all` when given, else the ring's copy. In place,
+/// the floats past a component's `cols` are the next component's (and, past the last row,
+/// [`ROW_SLACK`]): the spring lanes past a row's springs compute garbage there, which
+/// [`springs`] neither reports nor keeps.
+#[inline(always)]
+fn old_row<'b>(
+    ring: &'b [[Vec<f32>; 6]; 3],
+    all: Option<&'b [f32]>,
+    cols: usize,
+    width: usize,
+    r: usize,
+) -> [&'b [f32]; 6] {
+    match all {
+        Some(all) => {
+            let at = 6 * cols * r;
+            [
+                &all[at..][..width],
+                &all[at + cols..][..width],
+                &all[at + 2 * cols..][..width],
+                &all[at + 3 * cols..][..width],
+                &all[at + 4 * cols..][..width],
+                &all[at + 5 * cols..][..width],
+            ]
+        }
+        None => {
+            let [x, y, z, vx, vy, vz] = &ring[r % 3];
+            [x, y, z, vx, vy, vz]
+        }
+    }
+}
+
+/// Floats past the last row of the row-blocked state arrays, so that [`old_row`]'s components
+/// stay inside them.
+const ROW_SLACK: usize = LANES + 2;
+
 /// Copies row `s` of the old state into `dst` (x, y, z, vx, vy, vz), with Verlet's first
 /// drift x + ½h·v applied.
 #[inline(always)]
@@ -1437,11 +1485,13 @@ fn split_row(row: &mut [f32], cols: usize) -> [&mut [f32]; 6] {
 
 /// Hooke spring plus dashpot for `m` springs from ends `a` to ends `b` (x, y, z, vx, vy, vz
 /// each), the reference's operations in its order. Writes the force on the first end
-/// (`+f` there, `−f` on the second); returns whether a spring had zero length.
+/// (`+f` there, `−f` on the second); returns whether one of the first `count` springs (the
+/// real ones; the lanes past them compute whatever their ends hold) had zero length.
 #[inline(always)]
 fn springs(
     k: f32,
     c: f32,
+    count: usize,
     a: [&[f32]; 6],
     b: [&[f32]; 6],
     rest: &[f32],
@@ -1458,6 +1508,9 @@ fn springs(
     // into whole vectors (two zmm with AVX-512) with no run-time alias checks.
     let mut i = 0;
     while i < m {
+        // Lanes past the row's springs (`live` of this chunk are real) compute garbage: only
+        // the real ones may report a zero length.
+        let live = count.saturating_sub(i);
         let (mut ox, mut oy, mut oz) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
         let [ax, ay, az, avx, avy, avz] = chunks([ax, ay, az, avx, avy, avz], i);
         let [bx, by, bz, bvx, bvy, bvz] = chunks([bx, by, bz, bvx, bvy, bvz], i);
@@ -1474,7 +1527,7 @@ fn springs(
             let magnitude = k * (len - rest[j]) + c * (wx * dx + wy * dy + wz * dz);
             // A zero-length spring's lanes hold NaN: the substep is then discarded and run
             // on the reference path (`bad`), so no select is needed here.
-            bad |= len <= 0.0;
+            bad |= (j < live) & (len <= 0.0);
             ox[j] = magnitude * dx;
             oy[j] = magnitude * dy;
             oz[j] = magnitude * dz;
@@ -1531,7 +1584,7 @@ fn lanes_mut(s: &mut [f32], i: usize) -> &mut [f32; LANES] {
 fn particle_row(
     job: &Job<'_>,
     s: usize,
-    ring: &[[Vec<f32>; 6]; 3],
+    state: [&[f32]; 6],
     force: &[[[Vec<f32>; 3]; 3]; 6],
     air: &[[[Vec<f32>; 3]; 2]; 2],
     out: &mut [&mut [f32]; 6],
@@ -1545,7 +1598,6 @@ fn particle_row(
     let mass = &job.mass[lo..][..cols];
     let w = &job.inv_mass[lo..][..cols];
     let g = job.gravity.to_array();
-    let state = &ring[slot(s)];
     let (out_x, out_v) = out.split_at_mut(3);
     for comp in 0..3 {
         let pick = |class: usize, r: Option<usize>, added: bool| -> &[f32] {
