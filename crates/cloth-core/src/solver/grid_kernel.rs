@@ -4,11 +4,12 @@
 //! pattern, so a substep can run row by row over contiguous slices (no index chasing, no
 //! bounds checks in the inner loops, which the compiler vectorises):
 //!
-//! 1. a row's particle state is copied into six `f32` row buffers (x, y, z, vx, vy, vz;
-//!    position Verlet's first drift is applied here), from the `Vec3` arrays or, when
-//!    nothing else reads the particles between substeps ([`Plan::persist`]), from the
-//!    row-blocked arrays the previous substep wrote (synced back to the particles at the
-//!    step's end, [`sync`], and before any fallback to the reference path);
+//! 1. a row's particle state is six `f32` rows (x, y, z, vx, vy, vz): when nothing else
+//!    reads the particles between substeps ([`Plan::persist`]) they are read in place from
+//!    the row-blocked arrays the previous substep wrote ([`old_row`]; synced back to the
+//!    particles at the step's end, [`sync`], and before any fallback to the reference path),
+//!    else (a step's first substep, from the `Vec3` arrays, or position Verlet, whose first
+//!    drift is applied here) copied into a band's ring of three row buffers;
 //! 2. the six spring classes whose first end lies in row `s` (warp `(s,c)–(s+1,c)`, weft
 //!    `(s,c)–(s,c+1)`, the two shear diagonals, the two bend springs) are evaluated once each
 //!    from rows `s`, `s+1`, `s+2` into small per-class ring buffers (3 rows);
@@ -24,7 +25,7 @@
 //!    Chunks of particles clear of every collider skip both.
 //!
 //! With air on, each band also computes the air force of both triangles of every cell between
-//! ring rows `s` and `s+1` (the reference's per-triangle operations, shared with XPBD's grid
+//! rows `s` and `s+1` (the reference's per-triangle operations, shared with XPBD's grid
 //! path) into a ring of two cell rows, and each particle adds its (up to six) triangles'
 //! shares after its spring terms, in the reference's triangle order.
 //!
