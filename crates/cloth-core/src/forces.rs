@@ -99,6 +99,13 @@ pub(crate) const THIRD: f32 = 1.0 / 3.0;
 /// Total air force on one triangle with corners `x` moving at `v_tri` in `wind`: drag
 /// ½ρ|v_rel|²·C_d·A·cos θ along the normal and lift ½ρ|v_rel|²·C_l·A·|cos θ|·sin θ
 /// perpendicular to the flow (see [`crate::Air`]).
+///
+/// With `c` the corners' cross product (A = |c|/2, n = c/|c|), `r` the relative wind,
+/// `C = |c|²`, `S = |r|²` and `t = 1/√(C·S)`: cos θ = (c·r)·t and
+/// `F = ¼ρ·(c·r)·t·((C_d + C_l)·S·c − C_l·(c·r)·r)`, one square root and one division per
+/// triangle (the grid paths' air kernel does the same operations). A triangle with no area, in
+/// no wind, or whose `C·S` is not a normal positive `f32` (below about 10⁻³⁸, where the force
+/// is far below anything that could move a particle, or past 3·10³⁸) gets none.
 #[must_use]
 pub fn triangle_air_force(
     density: f32,
@@ -108,20 +115,15 @@ pub fn triangle_air_force(
     v_tri: Vec3,
     wind: Vec3,
 ) -> Vec3 {
-    let cross = (x[1] - x[0]).cross(x[2] - x[0]);
-    let cross_len = cross.length();
-    let v_rel = wind - v_tri;
-    let speed_sq = v_rel.length_squared();
-    if cross_len <= 0.0 || speed_sq <= 0.0 {
+    let c = (x[1] - x[0]).cross(x[2] - x[0]);
+    let r = wind - v_tri;
+    let (cc, ss) = (c.length_squared(), r.length_squared());
+    let p = cc * ss;
+    if !(p >= f32::MIN_POSITIVE && p < f32::INFINITY) {
         return Vec3::ZERO;
     }
-    let area = 0.5 * cross_len;
-    // Reciprocals, one division each (the same operations in the grid paths' air kernel).
-    let n = cross * (1.0 / cross_len);
-    let speed = speed_sq.sqrt();
-    let v_hat = v_rel * (1.0 / speed);
-    let cos = n.dot(v_hat);
-    let q = 0.5 * density * speed_sq * area;
-    // drag: q·C_d·cos θ·n; lift: q·C_l·|cos θ|·sin θ·l̂ = q·C_l·cos θ·(n − cos θ·v̂).
-    q * cos * (drag_coefficient * n + lift_coefficient * (n - cos * v_hat))
+    let t = 1.0 / p.sqrt();
+    let cr = c.dot(r);
+    let k = 0.25 * density * cr * t;
+    k * ((drag_coefficient + lift_coefficient) * ss * c - lift_coefficient * cr * r)
 }

@@ -1707,26 +1707,22 @@ fn air_force(k: &AirCoefficients, x0: V3, x1: V3, x2: V3, v0: V3, v1: V3, v2: V3
     let cx = e1y * e2z - e2y * e1z;
     let cy = e1z * e2x - e2z * e1x;
     let cz = e1x * e2y - e2x * e1y;
-    let cross_len = (cx * cx + cy * cy + cz * cz).sqrt();
     let third = crate::forces::THIRD;
     let tx = (v0.0 + v1.0 + v2.0) * third;
     let ty = (v0.1 + v1.1 + v2.1) * third;
     let tz = (v0.2 + v1.2 + v2.2) * third;
     let (rx, ry, rz) = (k.wind.x - tx, k.wind.y - ty, k.wind.z - tz);
-    let speed_sq = rx * rx + ry * ry + rz * rz;
-    let live = cross_len > 0.0 && speed_sq > 0.0;
-    let area = 0.5 * cross_len;
-    let inv_len = 1.0 / cross_len;
-    let (nx, ny, nz) = (cx * inv_len, cy * inv_len, cz * inv_len);
-    let speed = speed_sq.sqrt();
-    let inv_speed = 1.0 / speed;
-    let (hx, hy, hz) = (rx * inv_speed, ry * inv_speed, rz * inv_speed);
-    let cos = nx * hx + ny * hy + nz * hz;
-    let q = 0.5 * k.density * speed_sq * area;
-    let qc = q * cos;
-    let fx = qc * (k.drag * nx + k.lift * (nx - cos * hx));
-    let fy = qc * (k.drag * ny + k.lift * (ny - cos * hy));
-    let fz = qc * (k.drag * nz + k.lift * (nz - cos * hz));
+    let cc = cx * cx + cy * cy + cz * cz;
+    let ss = rx * rx + ry * ry + rz * rz;
+    let p = cc * ss;
+    let live = p >= f32::MIN_POSITIVE && p < f32::INFINITY;
+    let t = 1.0 / p.sqrt();
+    let cr = cx * rx + cy * ry + cz * rz;
+    let q = 0.25 * k.density * cr * t;
+    let (a, b) = ((k.drag + k.lift) * ss, k.lift * cr);
+    let fx = q * (a * cx - b * rx);
+    let fy = q * (a * cy - b * ry);
+    let fz = q * (a * cz - b * rz);
     if live {
         (fx * third, fy * third, fz * third)
     } else {
