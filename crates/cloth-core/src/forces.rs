@@ -119,7 +119,7 @@ pub fn triangle_air_force(
     let r = wind - v_tri;
     let (cc, ss) = (c.length_squared(), r.length_squared());
     let p = cc * ss;
-    if !(p >= f32::MIN_POSITIVE && p < f32::INFINITY) {
+    if !(f32::MIN_POSITIVE..f32::INFINITY).contains(&p) {
         return Vec3::ZERO;
     }
     let t = 1.0 / p.sqrt();

@@ -1715,7 +1715,7 @@ fn air_force(k: &AirCoefficients, x0: V3, x1: V3, x2: V3, v0: V3, v1: V3, v2: V3
     let cc = cx * cx + cy * cy + cz * cz;
     let ss = rx * rx + ry * ry + rz * rz;
     let p = cc * ss;
-    let live = p >= f32::MIN_POSITIVE && p < f32::INFINITY;
+    let live = (f32::MIN_POSITIVE..f32::INFINITY).contains(&p);
     let t = 1.0 / p.sqrt();
     let cr = cx * rx + cy * ry + cz * rz;
     let q = 0.25 * k.density * cr * t;
