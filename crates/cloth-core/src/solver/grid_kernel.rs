@@ -538,15 +538,12 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         b.prepare(cols);
     }
     if plan.persist {
-        if scratch.next_rows.len() != 6 * n + ROW_SLACK {
+        let len = 6 * n + ROW_SLACK;
+        if scratch.next_rows.len() != len {
             // Both state buffers start on a cache line (a row's arrays then load and store
             // whole lines, none split across two), half a page apart from each other.
-            let slot = if scratch.rows.len() == 6 * n + ROW_SLACK {
-                32
-            } else {
-                0
-            };
-            scratch.next_rows.reset(6 * n + ROW_SLACK, slot);
+            let slot = if scratch.rows.len() == len { 32 } else { 0 };
+            scratch.next_rows.reset(len, slot);
         }
     } else {
         scratch.next_position.resize(n, Vec3::ZERO);
@@ -754,13 +751,16 @@ pub(crate) fn band(
         Source::Rows(all) if !drift => Some(all),
         _ => None,
     };
-    let width = cols.next_multiple_of(LANES) + 2;
+    // Whole chunks of springs per row, read up to two columns past them (the offsets).
+    let full = cols.next_multiple_of(LANES);
+    let width = full + 2;
     if in_place.is_none() {
         for s in first..(first + 3).min(rows) {
             load_row(job, s, drift, half, &mut band.state[s % 3]);
         }
     }
     for s in first..r1 {
+        let old = |r: usize| old_row(&band.state, in_place, cols, width, r);
         // Springs whose first end is in row s.
         for (class, &(dr, a_dc, b_dc, _)) in CLASSES.iter().enumerate() {
             let Some((k, c)) = job.params[class] else {
@@ -774,12 +774,8 @@ pub(crate) fn band(
             // component's values ([`old_row`]), are not checked for a zero length, and are
             // reset to the class's padding value afterwards.
             let m = cols - a_dc.max(b_dc);
-            let full = cols.next_multiple_of(LANES);
             let rest = &job.rest[class][s * cols..][..full];
-            let (a, b) = (
-                old_row(&band.state, in_place, cols, width, s),
-                old_row(&band.state, in_place, cols, width, s + dr),
-            );
+            let (a, b) = (old(s), old(s + dr));
             let [fx, fy, fz] = &mut band.force[class][s % 3];
             result.degenerate |= springs(
                 k,
@@ -819,11 +815,10 @@ pub(crate) fn band(
             && s + 1 >= r0
             && s + 1 < rows
         {
-            let ring = |r: usize| old_row(&band.state, in_place, cols, width, r);
             let [[ax, ay, az], [bx, by, bz]] = &mut band.air[s % 2];
             super::grid_xpbd::air_row(
-                ring(s),
-                ring(s + 1),
+                old(s),
+                old(s + 1),
                 cols,
                 coeff,
                 [
@@ -847,7 +842,7 @@ pub(crate) fn band(
                     (out, Some((px, pv)))
                 }
             };
-            let state = old_row(&band.state, in_place, cols, width, s);
+            let state = old(s);
             particle_row(job, s, state, &band.force, &band.air, &mut out);
             // With the discrete contacts done on the arrays, the rows that also run continuous
             // collision get their candidates there too (old positions = the ring's row, which
@@ -1283,14 +1278,12 @@ pub(crate) fn ccd_mask(
             if !live {
                 continue;
             }
-            let mut found = false;
             for l in 0..LANES {
                 let other = rest([sx[l], sy[l], sz[l]], [qx[l], qy[l], qz[l]], len[l], db[l]);
                 let candidate = !(skip[l] | other);
                 near[l] |= candidate;
-                found |= candidate;
+                any |= candidate;
             }
-            any |= found;
         }
         for (k, near) in nt.iter_mut().enumerate() {
             let (skip, s, q, len, db) =
@@ -1836,7 +1829,54 @@ pub(crate) fn run(
 
 #[cfg(test)]
 mod tests {
-    use super::{Balance, band_start};
+    use super::{Balance, LANES, band_start, old_row, springs};
+
+    /// Read in place ([`old_row`]), the lanes past a row's springs see the next component's
+    /// values: on a flat cloth at rest along a row (y, z and vx constant) a lane's two ends
+    /// there are the same point. Only the row's real springs may report a zero length, else
+    /// every such substep would go to the reference path; a real zero-length spring still
+    /// reports it.
+    #[test]
+    fn only_a_rows_real_springs_report_a_zero_length() {
+        let cols: usize = 40; // 39 weft springs (c, c + 1), computed as two chunks of LANES
+        let full = cols.next_multiple_of(LANES);
+        let width = full + 2;
+        // One row-blocked row: x rising along the row, y, z, vx, vy, vz constant, then slack.
+        let mut all = vec![0.0_f32; 6 * cols + width];
+        for c in 0..cols {
+            all[c] = 0.1 * c as f32;
+            all[cols + c] = 0.6;
+            all[2 * cols + c] = -0.2;
+        }
+        let ring = Default::default();
+        let weft = |all: &[f32]| {
+            let a = old_row(&ring, Some(all), cols, width, 0);
+            let ends = |dc: usize| a.map(|comp| &comp[dc..][..full]);
+            let (mut fx, mut fy, mut fz) = (vec![0.0; full], vec![0.0; full], vec![0.0; full]);
+            let rest = vec![0.1; full];
+            springs(
+                1.0,
+                0.0,
+                cols - 1,
+                ends(0),
+                ends(1),
+                &rest,
+                [&mut fx, &mut fy, &mut fz],
+            )
+        };
+        // Lane 40 joins x[40] = y[0] … to x[41] = y[1] …: the same values, length zero.
+        assert_eq!(
+            (all[cols], all[2 * cols]),
+            (all[cols + 1], all[2 * cols + 1])
+        );
+        assert!(
+            !weft(&all),
+            "a lane past the row's springs reported a zero length"
+        );
+        let mut touching = all.clone();
+        touching[5] = touching[6];
+        assert!(weft(&touching), "spring (5, 6) has zero length");
+    }
 
     /// The balance moves a boundary towards the band that finished first until the bands
     /// finish within a row's work of each other (a lower band whose rows cost 10 % more and
