@@ -249,6 +249,184 @@ dispatched! {
     ) = grid_xpbd::row;
 }
 
+/// One row of a horizontal pass at spacing 2 of the grid XPBD path (pairs `(c, c + 2)`,
+/// colour `⌊c / 2⌋ mod 2`, from column `first` = 2·colour; `m` slots), projected in place
+/// with only the colour's pairs computed, when `kernel` is AVX-512 (and the CPU has it) and
+/// the pass is compliant without kept multipliers; returns whether it ran (else the caller
+/// runs the masked [`xpbd_row`], which computes every slot and keeps half). The same
+/// arithmetic as the masked row, so the same bits.
+pub(crate) fn xpbd_quads(
+    kernel: Kernel,
+    x: [&mut [f32]; 3],
+    shared: &Shared<'_>,
+    g0: usize,
+    first: usize,
+    m: usize,
+) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if kernel == Kernel::Avx512 && Kernel::Avx512.is_available() {
+        let Some(grid_xpbd::QuadsInput {
+            prev,
+            w,
+            rest,
+            params,
+        }) = shared.quads_input()
+        else {
+            return false;
+        };
+        if first < m {
+            let g = g0 + first;
+            let n = m + 2 - first;
+            let [x, y, z] = x;
+            let pos = [
+                &mut x[first..][..n],
+                &mut y[first..][..n],
+                &mut z[first..][..n],
+            ];
+            let prev = prev.map(|p| &p[g..][..n]);
+            // SAFETY: the CPU has AVX-512 F (checked above).
+            unsafe { quads_avx512(pos, prev, &w[g..][..n], &rest[g..][..n], m - first, params) };
+        }
+        return true;
+    }
+    let _ = (kernel, x, shared, g0, first, m);
+    false
+}
+
+/// [`xpbd_quads`]' AVX-512 kernel: spans of 32 columns (eight groups of four) as two vectors
+/// per field, the groups' columns 0, 1 and 2, 3 split into 16 lanes `a` and 16 lanes `b` by
+/// two-source permutes, one pair per lane, [`grid_xpbd::quads_scalar`] on the groups left.
+/// Every row slice starts at the colour's first column and holds `m + 2` entries.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn quads_avx512(
+    [x, y, z]: [&mut [f32]; 3],
+    [px, py, pz]: [&[f32]; 3],
+    w: &[f32],
+    rest: &[f32],
+    m: usize,
+    params: (f32, f32),
+) {
+    use std::arch::x86_64::{
+        __m512, __m512i, _CMP_GT_OQ, _mm512_add_ps, _mm512_cmp_ps_mask, _mm512_div_ps,
+        _mm512_loadu_ps, _mm512_mask_blend_ps, _mm512_mul_ps, _mm512_permutex2var_ps,
+        _mm512_set1_ps, _mm512_setr_epi32, _mm512_setzero_ps, _mm512_sqrt_ps, _mm512_storeu_ps,
+        _mm512_sub_ps,
+    };
+    const SPAN: usize = 32;
+    align_frame();
+    let n = m + 2;
+    let spans = n / SPAN;
+    // Lanes `a`: columns 4g, 4g + 1 of the span's eight groups; lanes `b`: 4g + 2, 4g + 3.
+    let ia: __m512i = _mm512_setr_epi32(0, 1, 4, 5, 8, 9, 12, 13, 16, 17, 20, 21, 24, 25, 28, 29);
+    let ib: __m512i = _mm512_setr_epi32(2, 3, 6, 7, 10, 11, 14, 15, 18, 19, 22, 23, 26, 27, 30, 31);
+    // Back: the span's first 16 columns from lanes a 0..8 and b 0..8, the last from 8..16.
+    let lo: __m512i = _mm512_setr_epi32(0, 1, 16, 17, 2, 3, 18, 19, 4, 5, 20, 21, 6, 7, 22, 23);
+    let hi: __m512i =
+        _mm512_setr_epi32(8, 9, 24, 25, 10, 11, 26, 27, 12, 13, 28, 29, 14, 15, 30, 31);
+    let load = |v: &[f32], at: usize| -> (__m512, __m512) {
+        let v: &[f32; SPAN] = v[at..].first_chunk().expect("a whole span");
+        // SAFETY: `v` holds 32 floats: both loads are in bounds (unaligned loads).
+        let (v0, v1) = unsafe {
+            (
+                _mm512_loadu_ps(v.as_ptr()),
+                _mm512_loadu_ps(v.as_ptr().add(16)),
+            )
+        };
+        (
+            _mm512_permutex2var_ps(v0, ia, v1),
+            _mm512_permutex2var_ps(v0, ib, v1),
+        )
+    };
+    let store = |v: &mut [f32], at: usize, a: __m512, b: __m512| {
+        let v: &mut [f32; SPAN] = v[at..].first_chunk_mut().expect("a whole span");
+        let (v0, v1) = (
+            _mm512_permutex2var_ps(a, lo, b),
+            _mm512_permutex2var_ps(a, hi, b),
+        );
+        // SAFETY: `v` holds 32 floats: both stores are in bounds (unaligned stores).
+        unsafe {
+            _mm512_storeu_ps(v.as_mut_ptr(), v0);
+            _mm512_storeu_ps(v.as_mut_ptr().add(16), v1);
+        }
+    };
+    let (alpha, gamma) = (_mm512_set1_ps(params.0), _mm512_set1_ps(params.1));
+    let minus_zero = _mm512_set1_ps(-0.0);
+    let one_gamma = _mm512_add_ps(_mm512_set1_ps(1.0), gamma);
+    let zero = _mm512_setzero_ps();
+    let one = _mm512_set1_ps(1.0);
+    for q in 0..spans {
+        let at = q * SPAN;
+        let (xa, xb) = load(x, at);
+        let (ya, yb) = load(y, at);
+        let (za, zb) = load(z, at);
+        let (pxa, pxb) = load(px, at);
+        let (pya, pyb) = load(py, at);
+        let (pza, pzb) = load(pz, at);
+        let (wa, wb) = load(w, at);
+        let (ra, _) = load(rest, at);
+        // `grid_xpbd::pair_correction`'s operations, in its order.
+        let l = [
+            _mm512_sub_ps(xa, xb),
+            _mm512_sub_ps(ya, yb),
+            _mm512_sub_ps(za, zb),
+        ];
+        let d = [
+            _mm512_sub_ps(_mm512_sub_ps(xa, pxa), _mm512_sub_ps(xb, pxb)),
+            _mm512_sub_ps(_mm512_sub_ps(ya, pya), _mm512_sub_ps(yb, pyb)),
+            _mm512_sub_ps(_mm512_sub_ps(za, pza), _mm512_sub_ps(zb, pzb)),
+        ];
+        let wsum = _mm512_add_ps(wa, wb);
+        let len2 = _mm512_add_ps(
+            _mm512_add_ps(_mm512_mul_ps(l[0], l[0]), _mm512_mul_ps(l[1], l[1])),
+            _mm512_mul_ps(l[2], l[2]),
+        );
+        let len = _mm512_sqrt_ps(len2);
+        let ok = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(wsum, zero)
+            & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(len, zero);
+        let inv = _mm512_mask_blend_ps(ok, zero, _mm512_div_ps(one, len));
+        let g = [
+            _mm512_mul_ps(l[0], inv),
+            _mm512_mul_ps(l[1], inv),
+            _mm512_mul_ps(l[2], inv),
+        ];
+        let constraint = _mm512_sub_ps(len, ra);
+        let rate = _mm512_add_ps(
+            _mm512_add_ps(_mm512_mul_ps(g[0], d[0]), _mm512_mul_ps(g[1], d[1])),
+            _mm512_mul_ps(g[2], d[2]),
+        );
+        // (−C − α̃·0 − γ·rate) (−C as −0 − C: the same bits as a negation) / ((1 + γ)·wsum + α̃), zero where not `ok`.
+        let num = _mm512_sub_ps(
+            _mm512_sub_ps(
+                _mm512_sub_ps(minus_zero, constraint),
+                _mm512_mul_ps(alpha, zero),
+            ),
+            _mm512_mul_ps(gamma, rate),
+        );
+        let den = _mm512_add_ps(_mm512_mul_ps(one_gamma, wsum), alpha);
+        let dl = _mm512_mask_blend_ps(ok, zero, _mm512_div_ps(num, den));
+        for (v, (a, b), g) in [
+            (&mut *x, (xa, xb), g[0]),
+            (&mut *y, (ya, yb), g[1]),
+            (&mut *z, (za, zb), g[2]),
+        ] {
+            let c = _mm512_mul_ps(dl, g);
+            let a = _mm512_add_ps(a, _mm512_mul_ps(wa, c));
+            let b = _mm512_sub_ps(b, _mm512_mul_ps(wb, c));
+            store(v, at, a, b);
+        }
+    }
+    grid_xpbd::quads_scalar(
+        [x, y, z],
+        [px, py, pz],
+        w,
+        rest,
+        m,
+        spans * SPAN / 4..n.div_ceil(4),
+        params,
+    );
+}
+
 dispatched! {
     /// The air forces of one cell row of XPBD's grid path, with `kernel` (the stepping thread's
     /// choice, passed on to the pool's workers). (The explicit integrators' bands call

@@ -17,7 +17,9 @@
 //! order, so a colour is projected all at once, as whole rows: a vertical class pairs row
 //! `r` with row `r + d` (two disjoint slices, updated in place); a horizontal class computes
 //! each spring's correction from the row (masked to the colour) and then applies it to both
-//! ends. One sweep (stage 2 of a substep):
+//! ends (the horizontal bend, at spacing 2, with AVX-512 computes only its colour's springs:
+//! the row's groups of four columns split into two vectors of ends by permutes,
+//! [`crate::simd::xpbd_quads`], the same bits). One sweep (stage 2 of a substep):
 //!
 //! 1. warp, weft, diagonal, anti-diagonal, vertical bend, horizontal bend, each colour 0
 //!    then colour 1, as compliant XPBD constraints (the reference's formula: compliance
@@ -894,6 +896,11 @@ impl XpbdGrid {
                             &mut lam[c0..c0 + len],
                         );
                     }
+                    return;
+                }
+                if s == 2
+                    && crate::simd::xpbd_quads(kernel, [x, y, z], &shared, r * cols, colour * 2, m)
+                {
                     return;
                 }
                 crate::simd::xpbd_row(
@@ -1831,6 +1838,74 @@ fn pairs_in<const LIMIT: bool, const KEEP: bool>(
     }
 }
 
+/// What a pass at spacing 2 in groups of four ([`crate::simd::xpbd_quads`]) reads besides
+/// the positions.
+pub(crate) struct QuadsInput<'a> {
+    /// Start positions of the substep (x, y, z).
+    pub(crate) prev: [&'a [f32]; 3],
+    /// Inverse masses.
+    pub(crate) w: &'a [f32],
+    /// Rest lengths by slot.
+    pub(crate) rest: &'a [f32],
+    /// The compliance `(α̃, γ)`.
+    pub(crate) params: (f32, f32),
+}
+
+impl Shared<'_> {
+    /// The pass's input for [`crate::simd::xpbd_quads`]; `None` for a limit or with kept
+    /// multipliers (those passes take the masked [`row`]).
+    pub(crate) fn quads_input(&self) -> Option<QuadsInput<'_>> {
+        match self.mode {
+            Mode::Compliant { alpha, gamma } if !self.keep => Some(QuadsInput {
+                prev: [&self.prev[0][..], &self.prev[1][..], &self.prev[2][..]],
+                w: self.w,
+                rest: self.rest,
+                params: (alpha, gamma),
+            }),
+            _ => None,
+        }
+    }
+}
+
+/// The pairs `(i, i + 2)` for `i` in `4·q .. 4·q + 2`, `q` in `groups`, of a row seen from
+/// its colour's first column (`x`, `prev`, `w` from there, `rest` by slot from there; `m`
+/// slots): a horizontal pass at spacing 2 (colour `⌊c / 2⌋ mod 2`) on the groups of four
+/// columns a vector kernel left, with the masked [`row`]'s arithmetic (the same bits), in
+/// place. Compliant pairs, multipliers not kept.
+#[inline(always)]
+pub(crate) fn quads_scalar(
+    [x, y, z]: [&mut [f32]; 3],
+    [px, py, pz]: [&[f32]; 3],
+    w: &[f32],
+    rest: &[f32],
+    m: usize,
+    groups: std::ops::Range<usize>,
+    params: (f32, f32),
+) {
+    for q in groups {
+        for i in [4 * q, 4 * q + 1] {
+            if i >= m {
+                return;
+            }
+            let k = i + 2;
+            let l = [x[i] - x[k], y[i] - y[k], z[i] - z[k]];
+            let d = [
+                (x[i] - px[i]) - (x[k] - px[k]),
+                (y[i] - py[i]) - (y[k] - py[k]),
+                (z[i] - pz[i]) - (z[k] - pz[k]),
+            ];
+            let (dl, g) = pair_correction::<false>(l, d, w[i] + w[k], rest[i], 0.0, params);
+            let c = [dl * g[0], dl * g[1], dl * g[2]];
+            x[i] += w[i] * c[0];
+            x[k] -= w[k] * c[0];
+            y[i] += w[i] * c[1];
+            y[k] -= w[k] * c[1];
+            z[i] += w[i] * c[2];
+            z[k] -= w[k] * c[2];
+        }
+    }
+}
+
 /// One row of a horizontal pass: pairs `(c, c + s)` for the `m = corr.len()` slots,
 /// `mask[c]` 1 in the colour and 0 outside; corrections into `corr`, then applied.
 #[inline(always)]
@@ -1911,6 +1986,102 @@ fn row_in<const LIMIT: bool, const KEEP: bool>(
         let (tail, wt) = (&mut v[s..s + m], &w[s..s + m]);
         for i in 0..m {
             tail[i] -= wt[i] * c[i];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simd::Kernel;
+
+    /// A pass at spacing 2 computed only on its colour's pairs ([`crate::simd::xpbd_quads`],
+    /// AVX-512) gives the masked row's bits ([`row`], every slot computed, half kept), on rows
+    /// of every length around the kernel's 32-column spans, both colours, with pinned
+    /// particles (zero inverse mass) and coincident ends (zero length) among them. Tolerance:
+    /// none. On a CPU without AVX-512 the quads must decline (the caller then takes the row).
+    #[test]
+    fn quads_give_the_masked_rows_bits() {
+        let mut seed = 0x2545_f491_u32;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            f32::from_bits(0x3f80_0000 | (seed >> 9)) - 1.5
+        };
+        for cols in [3, 4, 5, 31, 32, 33, 34, 35, 36, 63, 66, 67, 97, 130] {
+            let placed = |v: Vec<f32>| {
+                let mut p = Placed::default();
+                p.reset(v.len(), 0);
+                p.copy_from_slice(&v);
+                p
+            };
+            let mut field = |scale: f32| placed((0..cols).map(|_| scale * next()).collect());
+            let pos = [field(1.0), field(1.0), field(1.0)];
+            let prev = [field(1.0), field(1.0), field(1.0)];
+            let mut w = field(1.0);
+            for (c, w) in w.iter_mut().enumerate() {
+                *w = if c % 7 == 3 { 0.0 } else { w.abs() + 0.1 };
+            }
+            let rest = field(0.2);
+            let mut pos = pos;
+            // Two coincident ends: columns 5 and 7 (a pair of colour 0), where they exist.
+            if cols > 7 {
+                for p in &mut pos {
+                    p[7] = p[5];
+                }
+            }
+            let mode = Mode::Compliant {
+                alpha: 0.37,
+                gamma: 0.011,
+            };
+            let shared = Shared {
+                prev: &prev,
+                w: &w,
+                rest: &rest,
+                mode,
+                keep: false,
+            };
+            let m = cols - 2;
+            for colour in 0..2 {
+                let mask: Vec<f32> = (0..cols)
+                    .map(|c| f32::from(u8::from((c / 2) % 2 == colour)))
+                    .collect();
+                let mut masked = pos.clone().map(|p| p.to_vec());
+                let mut corr = [vec![0.0; m], vec![0.0; m], vec![0.0; m]];
+                let [cx, cy, cz] = &mut corr;
+                let [x, y, z] = &mut masked;
+                row(
+                    [x, y, z],
+                    [cx, cy, cz],
+                    &shared,
+                    0,
+                    2,
+                    &mut vec![0.0; m],
+                    &mask,
+                );
+                let mut quads = pos.clone().map(|p| p.to_vec());
+                let [x, y, z] = &mut quads;
+                let ran =
+                    crate::simd::xpbd_quads(Kernel::Avx512, [x, y, z], &shared, 0, 2 * colour, m);
+                assert_eq!(ran, Kernel::Avx512.is_available(), "{cols} columns");
+                if !ran {
+                    continue;
+                }
+                let bits = |v: &[Vec<f32>; 3]| {
+                    v.clone()
+                        .map(|a| a.iter().map(|f| f.to_bits()).collect::<Vec<_>>())
+                };
+                assert_eq!(
+                    bits(&quads),
+                    bits(&masked),
+                    "{cols} columns, colour {colour}"
+                );
+                if 2 * colour < m {
+                    let before = pos.clone().map(|p| p.to_vec());
+                    assert_ne!(bits(&quads), bits(&before), "{cols} columns: nothing moved");
+                }
+            }
         }
     }
 }
