@@ -108,14 +108,14 @@ impl Clone for ThreadScratch {
 impl ThreadScratch {
     /// One vector of at least `len` floats per thread of the current pool (allocates only
     /// when the pool or the length grew).
-    fn prepare(&mut self, len: usize) {
+    fn prepare(&mut self, len: usize, slot: usize) {
         let threads = rayon::current_num_threads().max(1);
         if self.each.len() != threads || self.len < len {
             self.len = self.len.max(len);
             self.each = (0..threads)
                 .map(|t| {
                     let mut v = Placed::default();
-                    v.reset(self.len, SCRATCH_SLOT + t);
+                    v.reset(self.len, slot + t);
                     std::sync::Mutex::new(v)
                 })
                 .collect();
@@ -163,9 +163,14 @@ pub(crate) struct XpbdGrid {
     /// Strain-limit levels and the `(levels, slack bits)` they were built for.
     levels: Vec<Level>,
     levels_key: Option<(u32, u32)>,
-    /// Air force of every triangle divided by 3 (the share of each corner), by component:
-    /// `[first triangle of each cell, second]`, cell `r * (cols − 1) + c`.
-    air: [[Placed; 3]; 2],
+    /// Air force of every triangle divided by 3 (the share of each corner) of the cell rows
+    /// between two bands of [`PREDICT_BAND`] rows (cell row `(k + 1)·PREDICT_BAND − 1` after
+    /// band `k`), `6·(cols − 1)` floats each: first triangles' x, y, z, second triangles' x,
+    /// y, z ([`air_cells`]).
+    air_edges: Placed,
+    /// The cell rows inside a band, two at a time (the one above the row being predicted and
+    /// the one below), one ring per thread of the pool.
+    air_ring: ThreadScratch,
     /// Velocities (structure of arrays), kept like `pos`.
     vel: [Placed; 3],
     /// Blocks of the chain solves (`XpbdSettings::chains`): warp (columns), weft (rows), each
@@ -230,10 +235,8 @@ impl XpbdGrid {
                 a.reset(n, slot);
                 slot += 1;
             }
-            for a in self.air.iter_mut().flatten() {
-                a.reset((rows - 1) * (cols - 1), slot);
-                slot += 1;
-            }
+            self.air_edges
+                .reset(rows.div_ceil(PREDICT_BAND) * 6 * (cols - 1), slot);
             self.masks.clear();
             let mut slot = MASK_SLOT;
             let mut s = 1;
@@ -343,7 +346,13 @@ impl XpbdGrid {
     /// reference's arithmetic in the reference's order (so the same bits): the external force
     /// of every particle (weight, global damping, then its share of the air force of each
     /// adjacent triangle in triangle order), then `v ← v + h·f/m`, `start ← x`, `x ← x + h·v`,
-    /// component by component as loops over the row that the compiler vectorises.
+    /// component by component as loops over the row that the compiler vectorises. One pass
+    /// over bands of [`PREDICT_BAND`] rows: each row is predicted right after the air of the
+    /// cell row below it (from that row and the next, neither predicted yet) is computed into
+    /// a two-row ring of the thread's; the cell rows between two bands, which read a row of
+    /// each, are computed in a short pass before. (Air written to whole-cloth arrays in a pass
+    /// of its own and read back by the prediction took 7 % more time per frame on the 256²
+    /// drape on one thread, 2 % on two.)
     pub(crate) fn predict(&mut self, ctx: &mut SubstepCtx<'_>) {
         let cfg = ctx.config;
         let (rows, cols, h) = (self.rows, self.cols, ctx.h);
@@ -353,85 +362,118 @@ impl XpbdGrid {
         let air = super::grid_kernel::air_active(cfg);
         let p = &*ctx.particles;
         self.load(p);
+        let coeff = AirCoefficients::of(cfg, ctx.wind);
+        let kernel = crate::simd::kernel();
+        let m = cols - 1;
+        let band = PREDICT_BAND * cols;
         if air {
-            let coeff = AirCoefficients::of(cfg, ctx.wind);
-            let kernel = crate::simd::kernel();
-            let (x, v) = (&self.pos, &self.vel);
-            let [t0, t1] = &mut self.air;
-            let [ax, ay, az] = t0;
-            let [bx, by, bz] = t1;
-            let m = cols - 1;
-            ax.par_chunks_mut(m)
-                .zip(ay.par_chunks_mut(m))
-                .zip(az.par_chunks_mut(m))
-                .zip(bx.par_chunks_mut(m))
-                .zip(by.par_chunks_mut(m))
-                .zip(bz.par_chunks_mut(m))
+            // The cell rows between two bands first (each reads the last row of one band and
+            // the first of the next, which the fused pass below then changes).
+            let [x, y, z] = &self.pos;
+            let [vx, vy, vz] = &self.vel;
+            let state = [[&x[..], &y[..], &z[..]], [&vx[..], &vy[..], &vz[..]]];
+            self.air_edges[..(rows - 1) / PREDICT_BAND * 6 * m]
+                .par_chunks_mut(6 * m)
                 .enumerate()
-                .for_each(|(r, (((((ax, ay), az), bx), by), bz))| {
-                    let at = |r: usize| {
-                        let i = r * cols..(r + 1) * cols;
-                        [
-                            &x[0][i.clone()],
-                            &x[1][i.clone()],
-                            &x[2][i.clone()],
-                            &v[0][i.clone()],
-                            &v[1][i.clone()],
-                            &v[2][i],
-                        ]
-                    };
-                    crate::simd::xpbd_air(
-                        kernel,
-                        at(r),
-                        at(r + 1),
-                        cols,
-                        &coeff,
-                        [[ax, ay, az], [bx, by, bz]],
-                    );
+                .for_each(|(k, out)| {
+                    let r = (k + 1) * PREDICT_BAND - 1;
+                    air_cells(kernel, &coeff, state, (r, cols), out);
                 });
+            self.air_ring.prepare(2 * 6 * m, AIR_SLOT);
         }
-        let tri = &self.air;
+        let (edges, ring) = (&self.air_edges, &self.air_ring);
         let (mass, w) = (&p.mass[..], &self.inv_mass[..]);
         let [x, y, z] = &mut self.pos;
         let [vx, vy, vz] = &mut self.vel;
         let [x0, y0, z0] = &mut self.prev;
-        x.par_chunks_mut(cols)
-            .zip(y.par_chunks_mut(cols))
-            .zip(z.par_chunks_mut(cols))
-            .zip(vx.par_chunks_mut(cols))
-            .zip(vy.par_chunks_mut(cols))
-            .zip(vz.par_chunks_mut(cols))
-            .zip(x0.par_chunks_mut(cols))
-            .zip(y0.par_chunks_mut(cols))
-            .zip(z0.par_chunks_mut(cols))
+        // Bands of rows, each row predicted right after the air of the cell row below it
+        // (from the row and the next, neither predicted yet); the cell rows between bands come
+        // from `edges`.
+        x.par_chunks_mut(band)
+            .zip(y.par_chunks_mut(band))
+            .zip(z.par_chunks_mut(band))
+            .zip(vx.par_chunks_mut(band))
+            .zip(vy.par_chunks_mut(band))
+            .zip(vz.par_chunks_mut(band))
+            .zip(x0.par_chunks_mut(band))
+            .zip(y0.par_chunks_mut(band))
+            .zip(z0.par_chunks_mut(band))
             .enumerate()
-            .for_each(|(r, ((((((((x, y), z), vx), vy), vz), x0), y0), z0))| {
-                let i = r * cols..(r + 1) * cols;
-                let (m, w) = (&mass[i.clone()], &w[i]);
-                let cells = |rr: usize, k: usize| {
-                    let j = rr * (cols - 1)..(rr + 1) * (cols - 1);
-                    [&tri[0][k][j.clone()], &tri[1][k][j]]
-                };
-                let lanes = [
-                    (x, vx, x0, gravity.x),
-                    (y, vy, y0, gravity.y),
-                    (z, vz, z0, gravity.z),
-                ];
-                for (k, (x, v, x0, g)) in lanes.into_iter().enumerate() {
-                    let lane = PredictLane {
-                        h,
-                        g,
-                        damping,
-                        m,
-                        w,
+            .for_each(|(k, ((((((((x, y), z), vx), vy), vz), x0), y0), z0))| {
+                let r0 = k * PREDICT_BAND;
+                let here = x.len() / cols;
+                let mut ring = air.then(|| ring.mine());
+                let edge = |k: usize| &edges[k * 6 * m..(k + 1) * 6 * m];
+                for i in 0..here {
+                    let r = r0 + i;
+                    let at = i * cols..(i + 1) * cols;
+                    // The cell row below row r, when there is one: computed here (inside
+                    // the band) or taken from the edges (the band's last row).
+                    if let Some(ring) = ring.as_deref_mut()
+                        && r + 1 < rows
+                        && i + 1 < here
+                    {
+                        let out = &mut ring[(r % 2) * 6 * m..][..6 * m];
+                        let rows2 = i * cols..(i + 2) * cols;
+                        let state = [
+                            [&x[rows2.clone()], &y[rows2.clone()], &z[rows2.clone()]],
+                            [&vx[rows2.clone()], &vy[rows2.clone()], &vz[rows2]],
+                        ];
+                        air_cells(kernel, &coeff, state, (0, cols), out);
+                    }
+                    let cells = |above: bool| -> Option<&[f32]> {
+                        let rr = if above { r.checked_sub(1)? } else { r };
+                        if !air || rr + 1 >= rows {
+                            return None;
+                        }
+                        Some(if rr + 1 == r0 || rr + 1 == r0 + here {
+                            edge(rr / PREDICT_BAND)
+                        } else {
+                            &ring.as_deref().expect("air")[(rr % 2) * 6 * m..][..6 * m]
+                        })
                     };
-                    let up = (air && r > 0).then(|| cells(r - 1, k));
-                    let down = (air && r + 1 < rows).then(|| cells(r, k));
-                    match (up, down) {
-                        (Some(u), Some(d)) => lane.run::<true, true>(x, v, x0, u, d),
-                        (Some(u), None) => lane.run::<true, false>(x, v, x0, u, [&[], &[]]),
-                        (None, Some(d)) => lane.run::<false, true>(x, v, x0, [&[], &[]], d),
-                        (None, None) => lane.run::<false, false>(x, v, x0, [&[], &[]], [&[], &[]]),
+                    let (up, down) = (cells(true), cells(false));
+                    // Component `comp` of a cell row's two triangles.
+                    fn part(c: Option<&[f32]>, comp: usize, m: usize) -> Option<[&[f32]; 2]> {
+                        c.map(|c| [&c[comp * m..][..m], &c[(3 + comp) * m..][..m]])
+                    }
+                    let (m_row, w_row) = (&mass[r * cols..][..cols], &w[r * cols..][..cols]);
+                    let lanes = [
+                        (
+                            &mut x[at.clone()],
+                            &mut vx[at.clone()],
+                            &mut x0[at.clone()],
+                            gravity.x,
+                        ),
+                        (
+                            &mut y[at.clone()],
+                            &mut vy[at.clone()],
+                            &mut y0[at.clone()],
+                            gravity.y,
+                        ),
+                        (
+                            &mut z[at.clone()],
+                            &mut vz[at.clone()],
+                            &mut z0[at],
+                            gravity.z,
+                        ),
+                    ];
+                    for (comp, (x, v, x0, g)) in lanes.into_iter().enumerate() {
+                        let lane = PredictLane {
+                            h,
+                            g,
+                            damping,
+                            m: m_row,
+                            w: w_row,
+                        };
+                        match (part(up, comp, m), part(down, comp, m)) {
+                            (Some(u), Some(d)) => lane.run::<true, true>(x, v, x0, u, d),
+                            (Some(u), None) => lane.run::<true, false>(x, v, x0, u, [&[], &[]]),
+                            (None, Some(d)) => lane.run::<false, true>(x, v, x0, [&[], &[]], d),
+                            (None, None) => {
+                                lane.run::<false, false>(x, v, x0, [&[], &[]], [&[], &[]]);
+                            }
+                        }
                     }
                 }
             });
@@ -590,7 +632,8 @@ impl XpbdGrid {
         }
         // Blocks go in pairs, solved together (their recurrences interleaved, `chains::solve`).
         let pair = PAIR * FIELDS * size;
-        self.chain_work.prepare(PAIR * chains::SCRATCH * size);
+        self.chain_work
+            .prepare(PAIR * chains::SCRATCH * size, SCRATCH_SLOT);
         let work = &self.chain_work;
         let statics = !self.chain_statics[class];
         self.chain_statics[class] = true;
@@ -1533,6 +1576,12 @@ const BLOCK_SPACING: usize = 16;
 /// (past the grid's arrays, slots 0–37), and of the first colour mask.
 const CHAIN_SLOT: usize = 40;
 const SCRATCH_SLOT: usize = 42;
+/// [`Placed`] slot of the first thread's ring of air cell rows.
+const AIR_SLOT: usize = 46;
+
+/// Rows per band of [`XpbdGrid::predict`]'s fused pass (air and prediction): the cell rows
+/// between bands are computed first, one per band, so fewer bands compute fewer apart.
+const PREDICT_BAND: usize = 8;
 const MASK_SLOT: usize = 50;
 
 /// Particles per chunk of the vectorised contact pre-test.
@@ -1650,6 +1699,43 @@ impl AirCoefficients {
             wind,
         }
     }
+}
+
+/// The air forces of cell row `r` (between particle rows `r` and `r + 1`) of the state
+/// `[x, v]` (rows of `cols` particles from row 0 of the slices) into `out` (`6·(cols − 1)`
+/// floats: the first triangles' x, y, z, then the second's), with `kernel`.
+fn air_cells(
+    kernel: crate::simd::Kernel,
+    coeff: &AirCoefficients,
+    [x, v]: [[&[f32]; 3]; 2],
+    (r, cols): (usize, usize),
+    out: &mut [f32],
+) {
+    let m = cols - 1;
+    let at = |r: usize| {
+        let i = r * cols..(r + 1) * cols;
+        [
+            &x[0][i.clone()],
+            &x[1][i.clone()],
+            &x[2][i.clone()],
+            &v[0][i.clone()],
+            &v[1][i.clone()],
+            &v[2][i],
+        ]
+    };
+    let (t0, t1) = out.split_at_mut(3 * m);
+    let (ax, rest) = t0.split_at_mut(m);
+    let (ay, az) = rest.split_at_mut(m);
+    let (bx, rest) = t1.split_at_mut(m);
+    let (by, bz) = rest.split_at_mut(m);
+    crate::simd::xpbd_air(
+        kernel,
+        at(r),
+        at(r + 1),
+        cols,
+        coeff,
+        [[ax, ay, az], [bx, by, bz]],
+    );
 }
 
 /// The air force (divided by 3) of both triangles of every cell between particle rows `top`
