@@ -440,6 +440,21 @@ dispatched! {
     ) = grid_xpbd::air_row;
 }
 
+/// Asks for the cache line holding `v`'s first entry to be brought into L2 (a prefetch hint,
+/// `prefetcht1`; nothing on other targets). It changes no result and never faults.
+#[inline(always)]
+pub(crate) fn prefetch_l2(v: &[f32]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T1, _mm_prefetch};
+        // SAFETY: a prefetch reads nothing architecturally and never faults; the pointer is
+        // the slice's own.
+        unsafe { _mm_prefetch::<_MM_HINT_T1>(v.as_ptr().cast()) };
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = v;
+}
+
 /// Whether `kernel` solves two blocks of chains together ([`chains::solve`] with `N = 2`, the
 /// two blocks' recurrences interleaved). With AVX-512's 32 vector registers both blocks'
 /// recurrences stay in registers (the 256² drape's chain kernel took 6 % fewer samples);
@@ -458,6 +473,7 @@ dispatched! {
         alpha: f32,
         gamma: f32,
         keep: bool,
+        ahead: Option<&chains::Ahead<'_>>,
     ) = chains::solve_lanes;
 }
 

@@ -639,7 +639,7 @@ impl XpbdGrid {
         self.chain_statics[class] = true;
         let starts = statics || !self.chain_starts[class];
         self.chain_starts[class] = true;
-        let solve = |chunk: &mut [f32]| {
+        let solve = |chunk: &mut [f32], ahead: Option<&chains::Ahead<'_>>| {
             let in_chunk = chunk.len() / (FIELDS * size);
             chains::iterate(
                 chunk,
@@ -649,6 +649,7 @@ impl XpbdGrid {
                 (alpha, gamma, iterations),
                 multipliers,
                 kernel,
+                ahead,
             );
         };
         if class == 1 {
@@ -697,7 +698,7 @@ impl XpbdGrid {
                             kernel,
                         );
                     }
-                    solve(chunk);
+                    solve(chunk, None);
                     for (h, block) in chunk.chunks_exact(FIELDS * size).enumerate() {
                         let mine = h * LANES * cols..;
                         // Positions (fields 0, 1, 2; not `in_blocks`) and, when kept,
@@ -764,7 +765,21 @@ impl XpbdGrid {
                         kernel,
                     );
                 }
-                solve(chunk);
+                // The next pair's columns (most often this thread's next task: rayon hands
+                // each thread a contiguous range) fetched into L2 during this pair's solve,
+                // when they come from the rows.
+                let next = (p + 1) * PAIR * LANES;
+                let ahead = (next < count && (from.is_none() || starts)).then(|| {
+                    let pos = |f: usize| from.is_none().then_some(&[x, y, z][f][..]);
+                    let start = |f: usize| starts.then_some(&prev[f][..]);
+                    chains::Ahead {
+                        fields: [pos(0), pos(1), pos(2), start(0), start(1), start(2)],
+                        first: next,
+                        stride: cols,
+                        span: (PAIR * LANES).min(count - next),
+                    }
+                });
+                solve(chunk, ahead.as_ref());
             });
         let scratch = &self.chains[class];
         let [x, y, z] = &mut self.pos;
