@@ -364,7 +364,18 @@ fn quads_avx512(
         let (pya, pyb) = load(py, at);
         let (pza, pzb) = load(pz, at);
         let (wa, wb) = load(w, at);
-        let (ra, _) = load(rest, at);
+        // Rest lengths by slot: the first ends' lanes only.
+        let ra = {
+            let r: &[f32; SPAN] = rest[at..].first_chunk().expect("a whole span");
+            // SAFETY: `r` holds 32 floats: both loads are in bounds (unaligned loads).
+            let (r0, r1) = unsafe {
+                (
+                    _mm512_loadu_ps(r.as_ptr()),
+                    _mm512_loadu_ps(r.as_ptr().add(16)),
+                )
+            };
+            _mm512_permutex2var_ps(r0, ia, r1)
+        };
         // `grid_xpbd::pair_correction`'s operations, in its order.
         let l = [
             _mm512_sub_ps(xa, xb),
@@ -395,7 +406,8 @@ fn quads_avx512(
             _mm512_add_ps(_mm512_mul_ps(g[0], d[0]), _mm512_mul_ps(g[1], d[1])),
             _mm512_mul_ps(g[2], d[2]),
         );
-        // (−C − α̃·0 − γ·rate) (−C as −0 − C: the same bits as a negation) / ((1 + γ)·wsum + α̃), zero where not `ok`.
+        // Δλ = (−C − α̃·0 − γ·rate) / ((1 + γ)·wsum + α̃), zero where not `ok`; −C is computed
+        // as −0 − C, the same bits as a negation for every C.
         let num = _mm512_sub_ps(
             _mm512_sub_ps(
                 _mm512_sub_ps(minus_zero, constraint),

@@ -433,10 +433,6 @@ impl XpbdGrid {
                         })
                     };
                     let (up, down) = (cells(true), cells(false));
-                    // Component `comp` of a cell row's two triangles.
-                    fn part(c: Option<&[f32]>, comp: usize, m: usize) -> Option<[&[f32]; 2]> {
-                        c.map(|c| [&c[comp * m..][..m], &c[(3 + comp) * m..][..m]])
-                    }
                     let (m_row, w_row) = (&mass[r * cols..][..cols], &w[r * cols..][..cols]);
                     let lanes = [
                         (
@@ -1716,6 +1712,12 @@ impl AirCoefficients {
     }
 }
 
+/// Component `comp` of a cell row's two triangles (`m` cells each, laid out as by
+/// [`air_cells`]).
+fn part(c: Option<&[f32]>, comp: usize, m: usize) -> Option<[&[f32]; 2]> {
+    c.map(|c| [&c[comp * m..][..m], &c[(3 + comp) * m..][..m]])
+}
+
 /// The air forces of cell row `r` (between particle rows `r` and `r + 1`) of the state
 /// `[x, v]` (rows of `cols` particles from row 0 of the slices) into `out` (`6·(cols − 1)`
 /// floats: the first triangles' x, y, z, then the second's), with `kernel`.
@@ -2099,8 +2101,10 @@ mod tests {
     /// A pass at spacing 2 computed only on its colour's pairs ([`crate::simd::xpbd_quads`],
     /// AVX-512) gives the masked row's bits ([`row`], every slot computed, half kept), on rows
     /// of every length around the kernel's 32-column spans, both colours, with pinned
-    /// particles (zero inverse mass) and coincident ends (zero length) among them. Tolerance:
-    /// none. On a CPU without AVX-512 the quads must decline (the caller then takes the row).
+    /// particles (zero inverse mass) and coincident ends (zero length) among them; so does
+    /// the scalar pass the AVX-512 kernel ends rows with ([`quads_scalar`], run here on whole
+    /// rows, on every CPU). Tolerance: none. On a CPU without AVX-512 the quads must decline
+    /// (the caller then takes the row).
     #[test]
     fn quads_give_the_masked_rows_bits() {
         let mut seed = 0x2545_f491_u32;
@@ -2118,14 +2122,13 @@ mod tests {
                 p
             };
             let mut field = |scale: f32| placed((0..cols).map(|_| scale * next()).collect());
-            let pos = [field(1.0), field(1.0), field(1.0)];
+            let mut pos = [field(1.0), field(1.0), field(1.0)];
             let prev = [field(1.0), field(1.0), field(1.0)];
             let mut w = field(1.0);
             for (c, w) in w.iter_mut().enumerate() {
                 *w = if c % 7 == 3 { 0.0 } else { w.abs() + 0.1 };
             }
             let rest = field(0.2);
-            let mut pos = pos;
             // Two coincident ends: columns 5 and 7 (a pair of colour 0), where they exist.
             if cols > 7 {
                 for p in &mut pos {
@@ -2161,6 +2164,41 @@ mod tests {
                     &mut vec![0.0; m],
                     &mask,
                 );
+                let bits = |v: &[Vec<f32>; 3]| {
+                    v.clone()
+                        .map(|a| a.iter().map(|f| f.to_bits()).collect::<Vec<_>>())
+                };
+                let mut scalar = pos.clone().map(|p| p.to_vec());
+                let [x, y, z] = &mut scalar;
+                let first = 2 * colour;
+                if first < m {
+                    let Some(input) = shared.quads_input() else {
+                        panic!("a compliant pass without kept multipliers has quads input");
+                    };
+                    let n = cols - first;
+                    quads_scalar(
+                        [&mut x[first..], &mut y[first..], &mut z[first..]],
+                        input.prev.map(|p| &p[first..]),
+                        &input.w[first..],
+                        &input.rest[first..],
+                        m - first,
+                        0..n.div_ceil(4),
+                        input.params,
+                    );
+                }
+                assert_eq!(
+                    bits(&scalar),
+                    bits(&masked),
+                    "{cols} columns, colour {colour}, scalar"
+                );
+                if first < m {
+                    let before = pos.clone().map(|p| p.to_vec());
+                    assert_ne!(
+                        bits(&scalar),
+                        bits(&before),
+                        "{cols} columns: nothing moved"
+                    );
+                }
                 let mut quads = pos.clone().map(|p| p.to_vec());
                 let [x, y, z] = &mut quads;
                 let ran =
@@ -2169,10 +2207,6 @@ mod tests {
                 if !ran {
                     continue;
                 }
-                let bits = |v: &[Vec<f32>; 3]| {
-                    v.clone()
-                        .map(|a| a.iter().map(|f| f.to_bits()).collect::<Vec<_>>())
-                };
                 assert_eq!(
                     bits(&quads),
                     bits(&masked),
