@@ -354,7 +354,6 @@ fn quads_avx512(
     let minus_zero = _mm512_set1_ps(-0.0);
     let one_gamma = _mm512_add_ps(_mm512_set1_ps(1.0), gamma);
     let zero = _mm512_setzero_ps();
-    let one = _mm512_set1_ps(1.0);
     for q in 0..spans {
         let at = q * SPAN;
         let (xa, xb) = load(x, at);
@@ -395,34 +394,31 @@ fn quads_avx512(
         let len = _mm512_sqrt_ps(len2);
         let ok = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(wsum, zero)
             & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(len, zero);
-        let inv = _mm512_mask_blend_ps(ok, zero, _mm512_div_ps(one, len));
-        let g = [
-            _mm512_mul_ps(l[0], inv),
-            _mm512_mul_ps(l[1], inv),
-            _mm512_mul_ps(l[2], inv),
-        ];
         let constraint = _mm512_sub_ps(len, ra);
-        let rate = _mm512_add_ps(
-            _mm512_add_ps(_mm512_mul_ps(g[0], d[0]), _mm512_mul_ps(g[1], d[1])),
-            _mm512_mul_ps(g[2], d[2]),
+        let ld = _mm512_add_ps(
+            _mm512_add_ps(_mm512_mul_ps(l[0], d[0]), _mm512_mul_ps(l[1], d[1])),
+            _mm512_mul_ps(l[2], d[2]),
         );
-        // Δλ = (−C − α̃·0 − γ·rate) / ((1 + γ)·wsum + α̃), zero where not `ok`; −C is computed
-        // as −0 − C, the same bits as a negation for every C.
+        // s = ((−C − α̃·0)·|l| − γ·(l·d)) / (((1 + γ)·wsum + α̃)·|l|²), zero where not `ok`;
+        // −C is computed as −0 − C, the same bits as a negation for every C.
         let num = _mm512_sub_ps(
-            _mm512_sub_ps(
-                _mm512_sub_ps(minus_zero, constraint),
-                _mm512_mul_ps(alpha, zero),
+            _mm512_mul_ps(
+                _mm512_sub_ps(
+                    _mm512_sub_ps(minus_zero, constraint),
+                    _mm512_mul_ps(alpha, zero),
+                ),
+                len,
             ),
-            _mm512_mul_ps(gamma, rate),
+            _mm512_mul_ps(gamma, ld),
         );
-        let den = _mm512_add_ps(_mm512_mul_ps(one_gamma, wsum), alpha);
-        let dl = _mm512_mask_blend_ps(ok, zero, _mm512_div_ps(num, den));
-        for (v, (a, b), g) in [
-            (&mut *x, (xa, xb), g[0]),
-            (&mut *y, (ya, yb), g[1]),
-            (&mut *z, (za, zb), g[2]),
+        let den = _mm512_mul_ps(_mm512_add_ps(_mm512_mul_ps(one_gamma, wsum), alpha), len2);
+        let f = _mm512_mask_blend_ps(ok, zero, _mm512_div_ps(num, den));
+        for (v, (a, b), l) in [
+            (&mut *x, (xa, xb), l[0]),
+            (&mut *y, (ya, yb), l[1]),
+            (&mut *z, (za, zb), l[2]),
         ] {
-            let c = _mm512_mul_ps(dl, g);
+            let c = _mm512_mul_ps(f, l);
             let a = _mm512_add_ps(a, _mm512_mul_ps(wa, c));
             let b = _mm512_sub_ps(b, _mm512_mul_ps(wb, c));
             store(v, at, a, b);

@@ -1840,8 +1840,11 @@ fn air_force(k: &AirCoefficients, x0: V3, x1: V3, x2: V3, v0: V3, v1: V3, v2: V3
     }
 }
 
-/// The correction `Δλ` of one pair and its gradient: `(dl, gx, gy, gz)`; `dl = 0` for a pair
-/// that does not move (both ends pinned, zero length, slack limit).
+/// The correction of one pair: `(dl, s)`, its multiplier's change `Δλ` and the factor `s =
+/// Δλ / |l|` that moves its ends along `l` (the first end by `w_a·s·l`, the second by
+/// `−w_b·s·l`): one division per pair instead of two (`1 / |l|` and `Δλ`). Both are zero for
+/// a pair that does not move (both ends pinned, zero length, slack limit). `dl` is unused
+/// (zero) for a limit.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn pair_correction<const LIMIT: bool>(
@@ -1851,24 +1854,23 @@ fn pair_correction<const LIMIT: bool>(
     rest: f32,
     lambda: f32,
     (alpha, gamma): (f32, f32),
-) -> (f32, [f32; 3]) {
-    let len = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
+) -> (f32, f32) {
+    let len2 = l[0] * l[0] + l[1] * l[1] + l[2] * l[2];
+    let len = len2.sqrt();
     let ok = wsum > 0.0 && len > 0.0;
-    let inv = if ok { 1.0 / len } else { 0.0 };
-    let g = [l[0] * inv, l[1] * inv, l[2] * inv];
-    let dl = if LIMIT {
-        if ok && len > rest {
-            (rest - len) / wsum
-        } else {
-            0.0
-        }
+    if LIMIT {
+        let s = (rest - len) / (wsum * len);
+        (0.0, if ok && len > rest { s } else { 0.0 })
     } else {
+        // Δλ = (−C − α̃·λ − γ·(l·d)/|l|) / ((1 + γ)·wsum + α̃), times |l| / |l| so that s =
+        // Δλ / |l| takes one division.
         let constraint = len - rest;
-        let rate = g[0] * rate_d[0] + g[1] * rate_d[1] + g[2] * rate_d[2];
-        let dl = (-constraint - alpha * lambda - gamma * rate) / ((1.0 + gamma) * wsum + alpha);
-        if ok { dl } else { 0.0 }
-    };
-    (dl, g)
+        let ld = l[0] * rate_d[0] + l[1] * rate_d[1] + l[2] * rate_d[2];
+        let num = (-constraint - alpha * lambda) * len - gamma * ld;
+        let den = ((1.0 + gamma) * wsum + alpha) * len2;
+        let s = if ok { num / den } else { 0.0 };
+        (s * len, s)
+    }
 }
 
 /// Projects the pairs `a[i]`–`b[i]` in place (a vertical pass's two rows). `g = (a0, b0,
@@ -1927,17 +1929,17 @@ fn pairs_in<const LIMIT: bool, const KEEP: bool>(
             (az[i] - paz[i]) - (bz[i] - pbz[i]),
         ];
         let lam = if KEEP { lambda[i] } else { 0.0 };
-        let (dl, g) = pair_correction::<LIMIT>(l, d, wa[i] + wb[i], rest[i], lam, params);
+        let (dl, f) = pair_correction::<LIMIT>(l, d, wa[i] + wb[i], rest[i], lam, params);
         if KEEP {
             lambda[i] += dl;
         }
-        let (sa, sb) = (wa[i] * dl, wb[i] * dl);
-        ax[i] += sa * g[0];
-        ay[i] += sa * g[1];
-        az[i] += sa * g[2];
-        bx[i] -= sb * g[0];
-        by[i] -= sb * g[1];
-        bz[i] -= sb * g[2];
+        let (sa, sb) = (wa[i] * f, wb[i] * f);
+        ax[i] += sa * l[0];
+        ay[i] += sa * l[1];
+        az[i] += sa * l[2];
+        bx[i] -= sb * l[0];
+        by[i] -= sb * l[1];
+        bz[i] -= sb * l[2];
     }
 }
 
@@ -1997,8 +1999,8 @@ pub(crate) fn quads_scalar(
                 (y[i] - py[i]) - (y[k] - py[k]),
                 (z[i] - pz[i]) - (z[k] - pz[k]),
             ];
-            let (dl, g) = pair_correction::<false>(l, d, w[i] + w[k], rest[i], 0.0, params);
-            let c = [dl * g[0], dl * g[1], dl * g[2]];
+            let (_, f) = pair_correction::<false>(l, d, w[i] + w[k], rest[i], 0.0, params);
+            let c = [f * l[0], f * l[1], f * l[2]];
             x[i] += w[i] * c[0];
             x[k] -= w[k] * c[0];
             y[i] += w[i] * c[1];
@@ -2071,14 +2073,14 @@ fn row_in<const LIMIT: bool, const KEEP: bool>(
                 (za[i] - pza[i]) - (zb[i] - pzb[i]),
             ];
             let lam = if KEEP { lambda[i] } else { 0.0 };
-            let (dl, g) = pair_correction::<LIMIT>(l, d, wa[i] + wb[i], rest[i], lam, params);
-            let dl = dl * mask[i];
+            let (dl, f) = pair_correction::<LIMIT>(l, d, wa[i] + wb[i], rest[i], lam, params);
             if KEEP {
-                lambda[i] += dl;
+                lambda[i] += dl * mask[i];
             }
-            cx[i] = dl * g[0];
-            cy[i] = dl * g[1];
-            cz[i] = dl * g[2];
+            let f = f * mask[i];
+            cx[i] = f * l[0];
+            cy[i] = f * l[1];
+            cz[i] = f * l[2];
         }
     }
     for (v, c) in [(&mut *x, &*cx), (&mut *y, &*cy), (&mut *z, &*cz)] {
