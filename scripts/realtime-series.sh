@@ -9,7 +9,9 @@
 # (xpbd.chains = true); a fourth field sets the sweeps per substep (default 1), e.g. 10:0:chains:2
 # (or 10:0:plain:2 without chains), and a fifth the Newton iterations of each chain solve
 # (xpbd.chain_iterations, default 1), e.g. 10:0:chains:1:3, and a sixth the rounds of chain
-# solves per sweep (xpbd.chain_rounds, default 1), e.g. 6:0:chains:1:2:2.
+# solves per sweep (xpbd.chain_rounds, default 1), e.g. 6:0:chains:1:2:2, and a seventh
+# `shear` to solve the shear springs as chains along the diagonals (xpbd.shear_chains), e.g.
+# 20:0:chains:1:1:1:shear.
 # The last column is the springs' elastic energy at the end (J): a drape that found its shape
 # stores little (0.2 J at 256² with 24 substeps), one whose cells collapsed in shear much more.
 # p99.9% and max% are the strain of the last frame; late_max% is the largest structural strain of
@@ -19,7 +21,7 @@
 # drape by at most about 10 %).
 # SCENE=file.toml runs another scene (default: the built-in drape); EXTRA=KEY=VALUE adds one
 # more --set (e.g. EXTRA='material.shear={stiffness=1e-6,damping=0.0}').
-# Usage: [KERNEL=reference] scripts/realtime-series.sh RES SECONDS THREADS SUBSTEPS:LEVELS[:chains[:SWEEPS[:NEWTON[:ROUNDS]]]]...
+# Usage: [KERNEL=reference] scripts/realtime-series.sh RES SECONDS THREADS SUBSTEPS:LEVELS[:chains[:SWEEPS[:NEWTON[:ROUNDS[:shear]]]]]...
 set -euo pipefail
 res=$1 seconds=$2 threads=$3
 shift 3
@@ -28,19 +30,22 @@ out=$(mktemp -d)
 damping=$(python3 -c "print(repr(2e-4 * (48 / $res) ** 2))")
 printf '%-6s %-9s %-6s %-7s %-7s %-6s %-6s %12s %9s %9s %9s %9s %12s %10s %10s %11s\n' res substeps sweeps levels chains newton rounds ms/frame p50% p99% p99.9% max% penetration E_spring/J late_max% late_shear%
 for setting in "$@"; do
-  IFS=: read -r substeps levels mode sweeps newton rounds <<<"$setting"
+  IFS=: read -r substeps levels mode sweeps newton rounds shear <<<"$setting"
   newton=${newton:-1}
   # chain_rounds only when asked for (binaries before it reject the key).
   with_rounds=${rounds:+,chain_rounds=$rounds}
   rounds=${rounds:-1}
+  # shear_chains only when asked for (binaries before it reject the key).
+  with_shear=
+  [ "${shear:-}" = shear ] && with_shear=,shear_chains=true
   sweeps=${sweeps:-1}
   chains=false
   [ "${mode:-}" = chains ] && chains=true
   "$bin" sim "${SCENE:-drape}" --resolution "$res" --seconds "$seconds" --threads "$threads" ${KERNEL:+--kernel "$KERNEL"} \
     --set 'solver.kind="xpbd"' --set "solver.substeps=$substeps" --set "forces.damping=$damping" \
-    --set "solver.xpbd={iterations=$sweeps,hierarchy_levels=$levels,chains=$chains,chain_iterations=$newton$with_rounds}" \
+    --set "solver.xpbd={iterations=$sweeps,hierarchy_levels=$levels,chains=$chains,chain_iterations=$newton$with_rounds$with_shear}" \
     ${EXTRA:+--set "$EXTRA"} --report "$out/r.json" >/dev/null
-  python3 - "$out/r.json" "$res" "$substeps" "$levels" "$chains" "$sweeps" "$newton" "$rounds" <<'PY'
+  python3 - "$out/r.json" "$res" "$substeps" "$levels" "$chains${shear:+,$shear}" "$sweeps" "$newton" "$rounds" <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1]))
 q = r["final_structural_strain"]

@@ -345,6 +345,17 @@ pub struct XpbdSettings {
     /// less than the substeps it saves. Default 1 (and then no contact pass before the
     /// chains).
     pub chain_rounds: u32,
+    /// Solve the shear springs of a grid cloth **chain by chain** too: every diagonal line of
+    /// the grid (the springs `(r, c)–(r + 1, c + 1)` one after the other), then every
+    /// anti-diagonal line (`(r, c)–(r + 1, c − 1)`), each line's multipliers together by the
+    /// same tridiagonal solve as `chains` (and with its `chain_iterations`), instead of
+    /// spring by spring. A shear then crosses the cloth in one solve instead of one cell
+    /// per substep: a cloth wrapping a collider finds its sheared shape with a fraction of
+    /// the substeps (the 256² drape at 20 substeps stores 0.07 J in its springs instead of
+    /// 0.41 J, the 0.11 J of the converged drape, which takes 32 substeps and two sweeps
+    /// without it), for about 40 % more time per substep. Default `false`. Ignored on a cloth
+    /// that is not a grid.
+    pub shear_chains: bool,
 }
 
 impl Default for XpbdSettings {
@@ -358,6 +369,7 @@ impl Default for XpbdSettings {
             chains: false,
             chain_iterations: 1,
             chain_rounds: 1,
+            shear_chains: false,
         }
     }
 }

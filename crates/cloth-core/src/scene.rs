@@ -613,6 +613,8 @@ pub struct XpbdDesc {
     pub chain_iterations: u32,
     #[serde(default = "d_chain_rounds")]
     pub chain_rounds: u32,
+    #[serde(default)]
+    pub shear_chains: bool,
 }
 fn d_chain_rounds() -> u32 {
     XpbdSettings::default().chain_rounds
@@ -640,6 +642,7 @@ impl Default for XpbdDesc {
             chains: false,
             chain_iterations: d_chain_iter(),
             chain_rounds: d_chain_rounds(),
+            shear_chains: false,
         }
     }
 }
@@ -1263,6 +1266,7 @@ impl Scene {
             chains: s.xpbd.chains,
             chain_iterations: s.xpbd.chain_iterations,
             chain_rounds: s.xpbd.chain_rounds,
+            shear_chains: s.xpbd.shear_chains,
         };
         config
     }
@@ -1510,6 +1514,7 @@ const KNOWN_KEYS: &[&str] = &[
     "chains",
     "chain_iterations",
     "chain_rounds",
+    "shear_chains",
     "max_stretch_ratio",
     "max_speed",
     "eye",
@@ -1767,6 +1772,7 @@ impl Scene {
                 chains: c.xpbd.chains,
                 chain_iterations: c.xpbd.chain_iterations,
                 chain_rounds: c.xpbd.chain_rounds,
+                shear_chains: c.xpbd.shear_chains,
             },
             limits: LimitsDesc {
                 max_stretch_ratio: c.limits.max_stretch_ratio,

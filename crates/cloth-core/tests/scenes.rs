@@ -319,3 +319,25 @@ fn saved_settings_rerun_to_the_same_state() {
     assert_eq!(by_hand.particles().position, from_file.particles().position);
     assert_eq!(by_hand.config(), from_file.config());
 }
+
+/// `solver.xpbd.shear_chains` reaches the simulation's settings (off by default), survives a
+/// round trip through TOML, and a wrong type is an error naming the key.
+#[test]
+fn shear_chains_key_reaches_the_config() {
+    let off = Scene::from_toml(GOOD, "good.toml").expect("parses");
+    assert!(!off.build().expect("build").config().xpbd.shear_chains);
+    let src = GOOD.replace(
+        "radius = 0.5",
+        "radius = 0.5\n[solver]\nkind = \"xpbd\"\n[solver.xpbd]\nchains = true\nshear_chains = true",
+    );
+    let on = Scene::from_toml(&src, "good.toml").expect("parses");
+    let config = *on.build().expect("build").config();
+    assert!(config.xpbd.shear_chains && config.xpbd.chains);
+    let again = Scene::from_toml(&on.to_toml(), "again.toml").expect("re-parse");
+    assert_eq!(again, on);
+    assert!(on.to_toml().contains("shear_chains = true"));
+    let (_, line, _, key, message) =
+        error_of(&src.replace("shear_chains = true", "shear_chains = 2"));
+    assert_eq!(key, "solver.xpbd.shear_chains", "{message}");
+    assert_eq!(line, 14, "{message}");
+}

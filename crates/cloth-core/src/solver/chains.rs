@@ -190,7 +190,7 @@ pub(crate) fn solve<const L: usize, const N: usize>(
                     let length = ((dx * dx) + (dy * dy) + (dz * dz)).sqrt();
                     let (wa, wb) = (w_a[l], w_b[l]);
                     let ws = wa + wb;
-                    let active = length > 0.0 && ws > 0.0;
+                    let active = length > 0.0 && ws > 0.0 && rest_k[l] >= 0.0;
                     (ex[l], ey[l], ez[l]) = if active {
                         let inv = 1.0 / length;
                         (dx * inv, dy * inv, dz * inv)
@@ -636,52 +636,102 @@ pub(crate) fn solve_reference(
     rest: &[f32],
     lambda: &mut [f32],
     (rows, cols, class): (usize, usize, usize),
-    (alpha, gamma, iterations): (f32, f32, u32),
+    solve: (f32, f32, u32),
     scratch: &mut Vec<f32>,
 ) {
     let (count, len) = shape(class, rows, cols);
+    for chain in 0..count {
+        let entry = |k: usize| at(class, cols, chain, k);
+        // Every entry's rest length and multiplier are gathered (the last one's is not read).
+        let line = (len, entry, |k: usize| Some(entry(k)));
+        solve_line(particles, start, (rest, &mut *lambda), line, solve, scratch);
+    }
+}
+
+/// The reference path's shear chains (`XpbdSettings::shear_chains`): every diagonal line of
+/// one direction (`dir` 0: the springs `(r, c)–(r + 1, c + 1)`, rest lengths and multipliers
+/// at slot `(r, c)`; 1: `(r, c)–(r + 1, c − 1)`, at slot `(r, c − 1)`), one line after the
+/// other, each at one lane in `scratch` with `iterations` Newton iterations: the lines that
+/// start on row 0, from column 0 on, then those that start on the first (diagonals) or last
+/// (anti-diagonals) column, from row 1 on. A line of one particle has no spring.
+pub(crate) fn solve_reference_diagonal(
+    particles: &mut crate::particles::Particles,
+    start: &[glam::Vec3],
+    rest: &[f32],
+    lambda: &mut [f32],
+    (rows, cols, dir): (usize, usize, usize),
+    solve: (f32, f32, u32),
+    scratch: &mut Vec<f32>,
+) {
+    let edge = if dir == 0 { 0 } else { cols - 1 };
+    let starts = (0..cols)
+        .map(|c| (0, c))
+        .chain((1..rows).map(|r| (r, edge)));
+    for (r0, c0) in starts {
+        let len = if dir == 0 {
+            (rows - r0).min(cols - c0)
+        } else {
+            (rows - r0).min(c0 + 1)
+        };
+        if len < 2 {
+            continue;
+        }
+        // Entry k of the line: row r0 + k, column c0 ± k; its spring to entry k + 1 has its
+        // rest length and multiplier at slot `entry(k) − dir`.
+        let entry = |k: usize| (r0 + k) * cols + if dir == 0 { c0 + k } else { c0 - k };
+        let line = (len, entry, |k: usize| (k + 1 < len).then(|| entry(k) - dir));
+        solve_line(particles, start, (rest, &mut *lambda), line, solve, scratch);
+    }
+}
+
+/// One chain of the reference path, `line = (len, entry, slot)`: entry `k` is particle
+/// `entry(k)`, its spring to entry `k + 1` has its rest length and multiplier at `slot(k)`
+/// (`None`: none, read as zero and not written back). Gathered into `scratch` at one lane,
+/// solved `iterations` times ([`solve`], multipliers kept), scattered back.
+fn solve_line(
+    particles: &mut crate::particles::Particles,
+    start: &[glam::Vec3],
+    (rest, lambda): (&[f32], &mut [f32]),
+    (len, entry, slot): (
+        usize,
+        impl Fn(usize) -> usize,
+        impl Fn(usize) -> Option<usize>,
+    ),
+    (alpha, gamma, iterations): (f32, f32, u32),
+    scratch: &mut Vec<f32>,
+) {
     // Every field the solve reads is gathered below; only the length matters.
     scratch.resize((FIELDS + SCRATCH) * len, 0.0);
-    for chain in 0..count {
-        {
-            let (fields, _) = scratch.split_at_mut(FIELDS * len);
-            for k in 0..len {
-                let i = at(class, cols, chain, k);
-                let (x, x0) = (particles.position[i], start[i]);
-                for (f, v) in [
-                    x.x,
-                    x.y,
-                    x.z,
-                    x0.x,
-                    x0.y,
-                    x0.z,
-                    particles.inv_mass[i],
-                    rest[i],
-                ]
+    {
+        let (fields, _) = scratch.split_at_mut(FIELDS * len);
+        for k in 0..len {
+            let i = entry(k);
+            let (x, x0) = (particles.position[i], start[i]);
+            let (r, l) = slot(k).map_or((0.0, 0.0), |s| (rest[s], lambda[s]));
+            for (f, v) in [x.x, x.y, x.z, x0.x, x0.y, x0.z, particles.inv_mass[i], r, l]
                 .into_iter()
-                .chain([lambda[i]])
                 .enumerate()
-                {
-                    fields[f * len + k] = v;
-                }
+            {
+                fields[f * len + k] = v;
             }
         }
-        for _ in 0..iterations {
-            let (fields, work) = scratch.split_at_mut(FIELDS * len);
-            solve::<1, 1>(
-                [Block::split(fields, work, len)],
-                len,
-                alpha,
-                gamma,
-                true,
-                None,
-            );
-        }
-        for k in 0..len {
-            let i = at(class, cols, chain, k);
-            particles.position[i] =
-                glam::Vec3::new(scratch[k], scratch[len + k], scratch[2 * len + k]);
-            lambda[i] = scratch[8 * len + k];
+    }
+    for _ in 0..iterations {
+        let (fields, work) = scratch.split_at_mut(FIELDS * len);
+        solve::<1, 1>(
+            [Block::split(fields, work, len)],
+            len,
+            alpha,
+            gamma,
+            true,
+            None,
+        );
+    }
+    for k in 0..len {
+        let i = entry(k);
+        particles.position[i] = glam::Vec3::new(scratch[k], scratch[len + k], scratch[2 * len + k]);
+        if let Some(s) = slot(k) {
+            lambda[s] = scratch[8 * len + k];
         }
     }
 }
@@ -694,6 +744,90 @@ pub(crate) fn transpose16(src: &[f32], src_stride: usize, dst: &mut [f32], dst_s
         let row = &src[l * src_stride..][..16];
         for (k, &v) in row.iter().enumerate() {
             dst[k * dst_stride + l] = v;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Solves one chain at one lane (`iterations` Newton iterations, multipliers kept) from
+    /// positions `x`, start positions `x0`, inverse masses `w` and rest lengths `rest` (entry
+    /// `k` for the spring `k`–`k + 1`); returns the positions and multipliers.
+    fn solve_one(
+        x: &[[f32; 3]],
+        x0: &[[f32; 3]],
+        w: &[f32],
+        rest: &[f32],
+        iterations: u32,
+    ) -> (Vec<[f32; 3]>, Vec<f32>) {
+        let len = x.len();
+        let mut fields = vec![0.0_f32; FIELDS * len];
+        let mut work = vec![0.0_f32; SCRATCH * len];
+        for k in 0..len {
+            let values = [
+                x[k][0], x[k][1], x[k][2], x0[k][0], x0[k][1], x0[k][2], w[k], rest[k], 0.0,
+            ];
+            for (f, v) in values.into_iter().enumerate() {
+                fields[f * len + k] = v;
+            }
+        }
+        for _ in 0..iterations {
+            solve::<1, 1>(
+                [Block::split(&mut fields, &mut work, len)],
+                len,
+                0.01,
+                0.05,
+                true,
+                None,
+            );
+        }
+        let x = (0..len)
+            .map(|k| [fields[k], fields[len + k], fields[2 * len + k]])
+            .collect();
+        (x, fields[8 * len..9 * len].to_vec())
+    }
+
+    /// A negative rest length leaves its spring out of the chain (`XpbdSettings::shear_chains`
+    /// joins two diagonal lines into one chain across the grid's wrap that way): a chain of
+    /// two lines joined by such a spring gives the same positions and multipliers as the two
+    /// lines solved on their own, with one Newton iteration and with three. Tolerance: none
+    /// (compared as values, so that a zero's sign does not count).
+    #[test]
+    fn a_negative_rest_length_cuts_the_chain() {
+        let (a, b) = (5, 7);
+        let n = a + b;
+        let x: Vec<[f32; 3]> = (0..n)
+            .map(|k| {
+                let t = k as f32;
+                [0.11 * t, 0.02 * (t * 1.3).sin(), 0.015 * (t * 0.7).cos()]
+            })
+            .collect();
+        let x0: Vec<[f32; 3]> = x
+            .iter()
+            .enumerate()
+            .map(|(k, p)| [p[0] - 0.001 * k as f32, p[1] + 0.002, p[2]])
+            .collect();
+        let mut w = vec![2.0_f32; n];
+        w[0] = 0.0;
+        w[n - 1] = 0.5;
+        let mut rest = vec![0.1_f32; n];
+        rest[a - 1] = -1.0;
+        rest[n - 1] = 0.0;
+        for iterations in [1, 3] {
+            let (whole, whole_lambda) = solve_one(&x, &x0, &w, &rest, iterations);
+            let (first, first_lambda) =
+                solve_one(&x[..a], &x0[..a], &w[..a], &rest[..a], iterations);
+            let (second, second_lambda) =
+                solve_one(&x[a..], &x0[a..], &w[a..], &rest[a..], iterations);
+            assert!(whole[..a] == first[..], "{iterations}: the first line");
+            assert!(whole[a..] == second[..], "{iterations}: the second line");
+            assert!(whole_lambda[..a - 1] == first_lambda[..a - 1]);
+            assert!(whole_lambda[a..n - 1] == second_lambda[..b - 1]);
+            assert!(whole.iter().flatten().all(|v| v.is_finite()));
+            // The solve did move the particles.
+            assert!(whole != x, "{iterations}: nothing moved");
         }
     }
 }

@@ -179,11 +179,15 @@ pub(crate) struct XpbdGrid {
     chains: [Placed; 2],
     /// The chain solves' scratch, one per thread of the pool.
     chain_work: ThreadScratch,
+    /// Blocks of the shear chains (`XpbdSettings::shear_chains`): diagonals, anti-diagonals
+    /// (their statics and start positions flagged at `chain_statics[2 + dir]` and
+    /// `chain_starts[2 + dir]`).
+    shear_blocks: [Placed; 2],
     /// Whether each direction's blocks hold the current inverse masses and rest lengths.
-    chain_statics: [bool; 2],
+    chain_statics: [bool; 4],
     /// Whether each direction's blocks hold this substep's start positions (reset by
     /// [`XpbdGrid::sweeps`]; later rounds and sweeps of the substep reuse them).
-    chain_starts: [bool; 2],
+    chain_starts: [bool; 4],
     /// Whether `pos` and `vel` hold the state (from the first substep of a step to
     /// [`XpbdGrid::sync`] at its end) rather than the particles.
     resident: bool,
@@ -215,7 +219,7 @@ impl XpbdGrid {
             && load_rest(&mut self.rest, topology, rows, cols)
             && grid_triangles(topology, rows, cols);
         self.key = Some((rows, cols, springs, ok));
-        self.chain_statics = [false; 2];
+        self.chain_statics = [false; 4];
         self.resident = false;
         self.levels_key = None;
         if ok {
@@ -316,7 +320,7 @@ impl XpbdGrid {
             .fold(true, |same, (a, b)| same & (a.to_bits() == b.to_bits()))
         {
             self.inv_mass.copy_from_slice(&p.inv_mass);
-            self.chain_statics = [false; 2];
+            self.chain_statics = [false; 4];
         }
         self.resident = true;
     }
@@ -491,7 +495,7 @@ impl XpbdGrid {
             );
         }
         self.keep = settings.iterations > 1;
-        self.chain_starts = [false; 2];
+        self.chain_starts = [false; 4];
         if self.keep {
             for l in &mut self.lambda {
                 l.fill(0.0);
@@ -510,6 +514,12 @@ impl XpbdGrid {
             let first = if settings.chains { 2 } else { 0 };
             for class in first..6 {
                 let Some(mode) = modes[class] else { continue };
+                if let (true, 2 | 3, Mode::Compliant { alpha, gamma }) =
+                    (settings.shear_chains, class, mode)
+                {
+                    self.shear_chains(class - 2, (alpha, gamma, settings.chain_iterations));
+                    continue;
+                }
                 let (dr, a_dc, b_dc, _) = CLASSES[class];
                 for colour in 0..2 {
                     if dr == 0 {
@@ -631,20 +641,15 @@ impl XpbdGrid {
         self.chain_work
             .prepare(PAIR * chains::SCRATCH * size, SCRATCH_SLOT);
         let work = &self.chain_work;
-        let statics = !self.chain_statics[class];
-        self.chain_statics[class] = true;
-        let starts = statics || !self.chain_starts[class];
-        self.chain_starts[class] = true;
+        let (statics, starts) = chain_flags(&mut self.chain_statics, &mut self.chain_starts, class);
         let solve = |chunk: &mut [f32], ahead: Option<&chains::Ahead<'_>>| {
-            let in_chunk = chunk.len() / (FIELDS * size);
-            chains::iterate(
+            let solve = (alpha, gamma, iterations);
+            iterate_chunk(
                 chunk,
-                &mut work.mine()[..in_chunk * chains::SCRATCH * size],
-                size,
-                len,
-                (alpha, gamma, iterations),
-                multipliers,
-                kernel,
+                work,
+                (size, len),
+                solve,
+                (multipliers, kernel),
                 ahead,
             );
         };
@@ -809,6 +814,175 @@ impl XpbdGrid {
                             *dst = *src.first_chunk::<LANES>().expect("lanes");
                         } else {
                             dst[first..first + lanes].copy_from_slice(&src[..lanes]);
+                        }
+                    }
+                }
+            });
+    }
+
+    /// The shear diagonals of one direction as chains along the grid's diagonal lines
+    /// (`XpbdSettings::shear_chains`; `dir` 0: the diagonals `(r, c)–(r + 1, c + 1)`, class
+    /// 2; 1: the anti-diagonals `(r, c)–(r + 1, c − 1)`, class 3), each line solved exactly by
+    /// [`super::chains`]'s tridiagonal solve. Chain `j` visits column `(j ± k) mod cols` at
+    /// row `k`: `cols` chains of `rows` entries, whose spring across the wrap (from the last
+    /// column to the first, or back) is left out by a negative rest length; so a chain holds
+    /// one line that starts at `(0, j)` and, after the wrap, the line that starts on the first
+    /// or last column of the row after it (every spring of the direction in exactly one chain,
+    /// the lines of a chain independent, as separate chains would be). At every row the lanes
+    /// of a block read and write one contiguous run of columns (wrapped at the row's end, in
+    /// one block per row). The blocks keep their inverse masses and rest lengths between
+    /// substeps and their start positions through a substep, as the warp's do.
+    fn shear_chains(&mut self, dir: usize, (alpha, gamma, iterations): (f32, f32, u32)) {
+        use super::chains::{self, FIELDS, LANES, Multipliers};
+        let (rows, cols) = (self.rows, self.cols);
+        if rows < 2 || cols < 2 {
+            return;
+        }
+        let (count, len) = (cols, rows);
+        let size = chains::stride(len);
+        let kernel = crate::simd::kernel();
+        let class = 2 + dir;
+        let blocks = &mut self.shear_blocks[dir];
+        if blocks.len() != count.div_ceil(LANES) * FIELDS * size {
+            blocks.reset(count.div_ceil(LANES) * FIELDS * size, SHEAR_SLOT + dir);
+            self.chain_statics[class] = false;
+        }
+        let (statics, starts) = chain_flags(&mut self.chain_statics, &mut self.chain_starts, class);
+        self.chain_work
+            .prepare(PAIR * chains::SCRATCH * size, SCRATCH_SLOT);
+        let keep = self.keep;
+        let multipliers = if keep {
+            Multipliers::Kept
+        } else if iterations > 1 {
+            Multipliers::Fresh
+        } else {
+            Multipliers::Unused
+        };
+        // The column of block `first`'s first lane at row `k` (its lanes take the next
+        // columns, wrapped), and the first slot of their springs (an anti-diagonal's slot is
+        // its upper end's column minus one).
+        let start = move |first: usize, k: usize| {
+            if dir == 0 {
+                (first + k) % cols
+            } else {
+                (first + cols - k % cols) % cols
+            }
+        };
+        let slot = move |c0: usize| if dir == 0 { c0 } else { (c0 + cols - 1) % cols };
+        // The lane whose spring crosses the wrap at row `k` (diagonal: from column cols − 1;
+        // anti-diagonal: from column 0), if among the block's `lanes`.
+        let cut = move |first: usize, k: usize, lanes: usize| {
+            let wrap = if dir == 0 { cols - 1 } else { 0 };
+            let l = (wrap + cols - start(first, k)) % cols;
+            (l < lanes).then_some(l)
+        };
+        let work = &self.chain_work;
+        let [x, y, z] = &self.pos;
+        let (prev, w, rest, lambda) = (
+            &self.prev,
+            &self.inv_mass,
+            &self.rest[class],
+            &self.lambda[class],
+        );
+        // Entry k of the next pair's first chain is at k·cols + first ± k (a hint: past the
+        // wrap it points into a neighbouring row).
+        let stride = if dir == 0 { cols + 1 } else { cols - 1 };
+        blocks
+            .par_chunks_mut(PAIR * FIELDS * size)
+            .enumerate()
+            .for_each(|(p, chunk)| {
+                for (h, block) in chunk.chunks_exact_mut(FIELDS * size).enumerate() {
+                    let first = (p * PAIR + h) * LANES;
+                    let lanes = LANES.min(count - first);
+                    if statics && lanes < LANES {
+                        // Lanes past the last chain: inactive (inverse mass 0), for good.
+                        block.fill(0.0);
+                    }
+                    for k in 0..len {
+                        let row = k * cols..(k + 1) * cols;
+                        let (c0, at) = (start(first, k), k * LANES);
+                        let mut load = |f: usize, src: &[f32], from: usize| {
+                            run_load(
+                                &mut block[f * size + at..][..lanes],
+                                &src[row.clone()],
+                                from,
+                            );
+                        };
+                        for (f, src) in [x, y, z].into_iter().enumerate() {
+                            load(f, src, c0);
+                        }
+                        if starts {
+                            for (f, src) in prev.iter().enumerate() {
+                                load(3 + f, src, c0);
+                            }
+                        }
+                        if statics {
+                            load(6, w, c0);
+                            load(7, rest, slot(c0));
+                        }
+                        if keep {
+                            load(8, lambda, slot(c0));
+                        }
+                        // No spring past a chain's last entry nor across the wrap.
+                        let (rest_k, lam_k) = (7 * size + at, 8 * size + at);
+                        if statics && k + 1 == len {
+                            block[rest_k..][..lanes].fill(-1.0);
+                        }
+                        if let Some(l) = cut(first, k, lanes) {
+                            block[rest_k + l] = -1.0;
+                            block[lam_k + l] = 0.0;
+                        }
+                        if keep && k + 1 == len {
+                            block[lam_k..][..lanes].fill(0.0);
+                        }
+                    }
+                }
+                let next = (p + 1) * PAIR * LANES;
+                let ahead = (next < count).then(|| {
+                    let start = |f: usize| starts.then_some(&prev[f][..]);
+                    chains::Ahead {
+                        fields: [Some(x), Some(y), Some(z), start(0), start(1), start(2)],
+                        first: next,
+                        stride,
+                        span: (PAIR * LANES).min(count - next),
+                    }
+                });
+                let solve = (alpha, gamma, iterations);
+                iterate_chunk(
+                    chunk,
+                    work,
+                    (size, len),
+                    solve,
+                    (multipliers, kernel),
+                    ahead.as_ref(),
+                );
+            });
+        // Positions (and kept multipliers) back into the rows, row by row.
+        let blocks = &self.shear_blocks[dir];
+        let [x, y, z] = &mut self.pos;
+        let lambda = &mut self.lambda[class];
+        x.par_chunks_mut(cols)
+            .zip(y.par_chunks_mut(cols))
+            .zip(z.par_chunks_mut(cols))
+            .zip(lambda.par_chunks_mut(cols))
+            .enumerate()
+            .for_each(|(k, (((x, y), z), lam))| {
+                for (b, block) in blocks.chunks_exact(FIELDS * size).enumerate() {
+                    let first = b * LANES;
+                    let lanes = LANES.min(count - first);
+                    let (c0, at) = (start(first, k), k * LANES);
+                    for (f, dst) in [&mut *x, &mut *y, &mut *z].into_iter().enumerate() {
+                        run_store(&block[f * size + at..][..lanes], dst, c0);
+                    }
+                    if keep && k + 1 < len {
+                        // The lane across the wrap holds no spring: its slot keeps its value.
+                        let s0 = slot(c0);
+                        let kept = cut(first, k, lanes)
+                            .map(|l| (s0 + l) % cols)
+                            .map(|c| (c, lam[c]));
+                        run_store(&block[8 * size + at..][..lanes], lam, s0);
+                        if let Some((c, v)) = kept {
+                            lam[c] = v;
                         }
                     }
                 }
@@ -1587,6 +1761,8 @@ const BLOCK_SPACING: usize = 16;
 /// (past the grid's arrays, slots 0–37), and of the first colour mask.
 const CHAIN_SLOT: usize = 40;
 const SCRATCH_SLOT: usize = 42;
+/// [`Placed`] slots of the shear chains' blocks (diagonals, anti-diagonals).
+const SHEAR_SLOT: usize = 38;
 /// [`Placed`] slot of the first thread's ring of air cell rows.
 const AIR_SLOT: usize = 46;
 
@@ -2093,6 +2269,75 @@ fn row_in<const LIMIT: bool, const KEEP: bool>(
             tail[i] -= wt[i] * c[i];
         }
     }
+}
+
+/// Whether the blocks of `class` (0, 1: warp, weft; 2, 3: shear chains) must gather their
+/// inverse masses and rest lengths (`statics`) and their start positions (`starts`) this time
+/// (flags `XpbdGrid::chain_statics` and `chain_starts`); from then on they hold them (until
+/// the inverse masses change, and for the substep).
+fn chain_flags(statics: &mut [bool; 4], starts: &mut [bool; 4], class: usize) -> (bool, bool) {
+    let gather_statics = !statics[class];
+    statics[class] = true;
+    let gather_starts = gather_statics || !starts[class];
+    starts[class] = true;
+    (gather_statics, gather_starts)
+}
+
+/// [`super::chains::iterate`] on a chunk of one or two blocks of `size`-float fields, with this
+/// thread's scratch from `work` and the stepping thread's `kernel`.
+fn iterate_chunk(
+    chunk: &mut [f32],
+    work: &ThreadScratch,
+    (size, len): (usize, usize),
+    solve: (f32, f32, u32),
+    (multipliers, kernel): (Multipliers, crate::simd::Kernel),
+    ahead: Option<&super::chains::Ahead<'_>>,
+) {
+    use super::chains::{FIELDS, SCRATCH};
+    let in_chunk = chunk.len() / (FIELDS * size);
+    super::chains::iterate(
+        chunk,
+        &mut work.mine()[..in_chunk * SCRATCH * size],
+        size,
+        len,
+        solve,
+        multipliers,
+        kernel,
+        ahead,
+    );
+}
+
+/// Copies `dst.len()` entries of a row from column `start` on, wrapping at the row's end.
+#[inline(always)]
+fn run_load(dst: &mut [f32], row: &[f32], start: usize) {
+    use super::chains::LANES;
+    if dst.len() == LANES && start + LANES <= row.len() {
+        // A whole run within the row (all but one block per row): no `memcpy` call.
+        let d = dst.first_chunk_mut::<LANES>().expect("a whole run");
+        *d = *row[start..].first_chunk::<LANES>().expect("a whole run");
+        return;
+    }
+    let n = dst.len();
+    let head = (row.len() - start).min(n);
+    dst[..head].copy_from_slice(&row[start..start + head]);
+    dst[head..].copy_from_slice(&row[..n - head]);
+}
+
+/// The inverse of [`run_load`]: `src` into a row from column `start` on, wrapping.
+#[inline(always)]
+fn run_store(src: &[f32], row: &mut [f32], start: usize) {
+    use super::chains::LANES;
+    if src.len() == LANES && start + LANES <= row.len() {
+        let d = row[start..]
+            .first_chunk_mut::<LANES>()
+            .expect("a whole run");
+        *d = *src.first_chunk::<LANES>().expect("a whole run");
+        return;
+    }
+    let n = src.len();
+    let head = (row.len() - start).min(n);
+    row[start..start + head].copy_from_slice(&src[..head]);
+    row[..n - head].copy_from_slice(&src[head..]);
 }
 
 #[cfg(test)]

@@ -52,6 +52,9 @@ pub(crate) struct XpbdScratch {
     /// slot, and the one-chain scratch of the reference path.
     chain_lambda: [Vec<f32>; 2],
     chain_scratch: Vec<f32>,
+    /// Multipliers of the shear chains (`XpbdSettings::shear_chains`) by direction
+    /// (diagonal, anti-diagonal) and slot.
+    shear_lambda: [Vec<f32>; 2],
 }
 
 impl XpbdScratch {
@@ -235,11 +238,18 @@ fn reference_sweeps(
     }
     sc.lambda.clear();
     sc.lambda.resize(ctx.topology.springs().len(), 0.0);
-    let chains = settings.chains && sc.grid.prepare(ctx.topology, ctx.particles.len());
-    if chains {
-        for l in &mut sc.chain_lambda {
-            l.clear();
-            l.resize(ctx.particles.len(), 0.0);
+    let grid = (settings.chains || settings.shear_chains)
+        && sc.grid.prepare(ctx.topology, ctx.particles.len());
+    let chains = (grid && settings.chains, grid && settings.shear_chains);
+    for (on, lambda) in [
+        (chains.0, &mut sc.chain_lambda),
+        (chains.1, &mut sc.shear_lambda),
+    ] {
+        if on {
+            for l in lambda {
+                l.clear();
+                l.resize(ctx.particles.len(), 0.0);
+            }
         }
     }
     let mut contacts = 0;
@@ -259,9 +269,17 @@ fn reference_sweeps(
     ctx.contacts.contacts = contacts;
 }
 
-/// Every spring in storage order; with `chains`, the warp and the weft as chains instead
-/// ([`super::chains::solve_reference`]), after the others, in `xpbd.chain_rounds` rounds.
-fn solve_springs(ctx: &mut SubstepCtx<'_>, sc: &mut XpbdScratch, h: f32, chains: bool) {
+/// Every spring in storage order; with `chains.0` (`xpbd.chains`), the warp and the weft as
+/// chains instead ([`super::chains::solve_reference`]), after the others, in
+/// `xpbd.chain_rounds` rounds; with `chains.1` (`xpbd.shear_chains`), the shear springs as
+/// chains along the diagonal lines, in their place in the order
+/// ([`super::chains::solve_reference_diagonal`]).
+fn solve_springs(
+    ctx: &mut SubstepCtx<'_>,
+    sc: &mut XpbdScratch,
+    h: f32,
+    (chains, shear_chains): (bool, bool),
+) {
     let cfg = ctx.config;
     let p = &mut *ctx.particles;
     // Offsets of each kind's multipliers (the storage order).
@@ -285,6 +303,22 @@ fn solve_springs(ctx: &mut SubstepCtx<'_>, sc: &mut XpbdScratch, h: f32, chains:
         let Some((alpha, gamma)) = compliance(cfg, kind, h) else {
             continue;
         };
+        if let (SpringKind::Shear, true, Some((rows, cols))) =
+            (kind, shear_chains, ctx.topology.grid())
+        {
+            for dir in 0..2 {
+                super::chains::solve_reference_diagonal(
+                    &mut *p,
+                    &sc.prev,
+                    sc.grid.class_rest(2 + dir),
+                    &mut sc.shear_lambda[dir],
+                    (rows, cols, dir),
+                    (alpha, gamma, cfg.xpbd.chain_iterations),
+                    &mut sc.chain_scratch,
+                );
+            }
+            continue;
+        }
         for (s, lambda) in springs.iter().zip(lambda.iter_mut()) {
             let (a, b) = (s.a as usize, s.b as usize);
             let (wa, wb) = (p.inv_mass[a], p.inv_mass[b]);
