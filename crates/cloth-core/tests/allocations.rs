@@ -101,8 +101,9 @@ fn steps_after_the_first_do_not_allocate() {
         config.self_collision = Some(SelfCollision::default());
         config.air.wind = Vec3::new(1.0, 0.0, 0.0);
         config.strain_limit = Some(0.2);
-        // XPBD's reference path with its chain solves.
+        // XPBD's reference path with its chain solves and shear chains.
         config.xpbd.chains = true;
+        config.xpbd.shear_chains = true;
         sim.set_config(config).expect("config");
         sim.pin(0).expect("pin");
         // Inside the global pool, as `cloth sim` steps.
@@ -111,9 +112,9 @@ fn steps_after_the_first_do_not_allocate() {
 }
 
 /// The explicit integrators' grid fast path and XPBD's grid path (strain limits on), with
-/// the drape's air, on a pool of 2 threads, with and without XPBD's chain solves: still no
-/// allocation after the first step (the bands' buffers, the next-state arrays and the grid
-/// XPBD scratch, chain blocks included, are kept).
+/// the drape's air, on a pool of 2 threads, with and without XPBD's chain solves (and shear
+/// chains): still no allocation after the first step (the bands' buffers, the next-state
+/// arrays and the grid XPBD scratch, chain blocks included, are kept).
 #[test]
 fn threaded_fast_path_steps_do_not_allocate() {
     let _serial = SERIAL
@@ -140,6 +141,8 @@ fn threaded_fast_path_steps_do_not_allocate() {
             // two rounds of chain solves (a contact pass before each).
             config.xpbd.chain_iterations = if chains { 2 } else { 1 };
             config.xpbd.chain_rounds = if chains { 2 } else { 1 };
+            // With the structural chains, the shear chains too (their blocks are kept).
+            config.xpbd.shear_chains = chains;
         }
         config.air.wind = Vec3::new(1.0, 0.0, 0.5);
         if integrator == Integrator::ForwardEuler {
