@@ -32,11 +32,16 @@
 //! (a contact pass before each round), the multipliers carried from round to round
 //! ([`Multipliers`]), which lowers what the weft and the contacts leave of the warp's error.
 //!
+//! `XpbdSettings::shear_chains` solves the shear springs the same way, along the grid's
+//! diagonal lines ([`solve_reference_diagonal`] on the reference path,
+//! `grid_xpbd::XpbdGrid::shear_chains` on the grid path, whose chains join two lines across
+//! the grid's wrap by a spring with a negative rest length, which the solve leaves out).
+//!
 //! A chain of two particles (one spring) gives the reference's single-spring projection, up
 //! to rounding: the solve multiplies by one reciprocal where the reference divides (one
 //! division per spring for its direction and one per elimination step, instead of five:
 //! the divider set the pace of the solve). A spring of zero length or between two pinned particles is left out of its chain
-//! (its multiplier does not change).
+//! (its multiplier does not change), and so is a spring whose rest length is negative.
 //!
 //! The chains of one direction are independent. The grid path solves them in blocks of
 //! [`LANES`] chains laid out step-major (entry `(k, lane)` at `k·LANES + lane`), so every

@@ -29,7 +29,9 @@
 //!    blocks at a time, the weft taking the warp's positions straight from its blocks and,
 //!    between rounds, the warp the weft's),
 //!    `XpbdSettings::chain_rounds` times in turn (each round after a contact pass when there
-//!    are several);
+//!    are several); with `XpbdSettings::shear_chains`, the diagonals and then the
+//!    anti-diagonals as chains along the grid's diagonal lines too, in place of their pair
+//!    passes ([`XpbdGrid::shear_chains`]);
 //! 2. the multi-resolution strain limits, when `XpbdSettings::hierarchy_levels > 0` (after
 //!    Wang, O'Brien & Ramamoorthi 2010, "Multi-resolution isotropic strain limiting"): for
 //!    each spacing s = 2, 4, …, 2^levels, particles `s` apart along the warp and along the

@@ -9,7 +9,9 @@
 //!    the force-based integrators) and the dashpot as XPBD constraint damping β = c, in the
 //!    fixed storage order (kind by kind, row-major) — with `XpbdSettings::chains` on a grid,
 //!    shear and bend first and then the warp and weft as whole chains ([`super::chains`]);
-//!    then the optional long-range tethers; then collider contacts as position constraints
+//!    with `XpbdSettings::shear_chains` on a grid, the shear springs as chains along the
+//!    grid's diagonal lines, in their place in the order; then the optional long-range
+//!    tethers; then collider contacts as position constraints
 //!    with position-level Coulomb friction;
 //! 3. velocities from positions: v ← (x − x_prev)/h.
 //!
