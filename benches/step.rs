@@ -99,8 +99,8 @@ fn drape(c: &mut Criterion) {
 /// The drape with XPBD at 256² (20 substeps, strain limits to 64 particles), warmed onto
 /// the ball: the reference path (storage-order Gauss–Seidel) on 1 thread, the grid path
 /// (coloured Gauss–Seidel over rows) on 1 and 2 threads; then the grid path with the chain
-/// solves instead of the strain limits, on 1 and 2 threads; then the chains at 10 substeps
-/// with 3 Newton iterations per chain solve (the strain of issue 7 at 256²).
+/// solves instead of the strain limits, on 1 and 2 threads, and with shear chains too on 2;
+/// then the chains at 10 substeps with 3 Newton iterations per chain solve.
 fn xpbd_drape(c: &mut Criterion) {
     let mut sim = presets::drape(256, Integrator::Xpbd).expect("drape scene");
     let mut config = *sim.config();
@@ -125,6 +125,12 @@ fn xpbd_drape(c: &mut Criterion) {
     sim.set_config(config).expect("config");
     bench_on(c, "drape-256/xpbd/chains/1t", &sim, 1, None);
     bench_on(c, "drape-256/xpbd/chains/2t", &sim, 2, None);
+    // The shear springs as chains along the diagonals too (same substeps).
+    let mut shear = sim.clone();
+    let mut config = *shear.config();
+    config.xpbd.shear_chains = true;
+    shear.set_config(config).expect("config");
+    bench_on(c, "drape-256/xpbd/shear-chains/2t", &shear, 2, None);
     // The setting that meets the issue's strain at 256²: 10 substeps, 3 Newton iterations
     // per chain solve.
     let mut config = *sim.config();
