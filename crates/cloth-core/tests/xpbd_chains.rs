@@ -459,8 +459,9 @@ fn sheared_sheet(rows: usize, cols: usize, substeps: u32) -> Simulation {
 /// the two paths project in different orders) they give the same bits: the drape with
 /// contacts, friction and wind, with three Newton iterations, with two sweeps (multipliers
 /// kept and read back from the grid), with two rounds of the structural chains; a curtain of
-/// 40 rows × 12 columns (a block with 4 inactive lanes, chains that wrap 3 times) and a sheet
-/// of 12 rows × 40 columns (blocks of 16, 16 and 8 chains) in wind. Tolerance: none.
+/// 40 rows × 12 columns (a block with 4 inactive lanes, chains that wrap 3 times), a sheet
+/// of 12 rows × 40 columns (blocks of 16, 16 and 8 chains) and the narrowest grids (2 × 17,
+/// 17 × 2, 3 × 33) in wind. Tolerance: none.
 #[test]
 fn shear_chains_match_the_reference_path_bit_for_bit() {
     let base = || shear_chains(drape(40, 8, true, true), false);
@@ -477,6 +478,9 @@ fn shear_chains_match_the_reference_path_bit_for_bit() {
         ("drape, 2 rounds of 2 Newton iterations", rounds, 40),
         ("curtain 40 x 12", sheared_sheet(40, 12, 4), 60),
         ("sheet 12 x 40", sheared_sheet(12, 40, 4), 60),
+        ("sheet 2 x 17", sheared_sheet(2, 17, 4), 30),
+        ("curtain 17 x 2", sheared_sheet(17, 2, 4), 30),
+        ("sheet 3 x 33", sheared_sheet(3, 33, 4), 30),
     ] {
         // The shear springs do work here: the diagonals are strained.
         let mut probe = sim.clone();
