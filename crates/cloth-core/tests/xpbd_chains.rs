@@ -21,8 +21,14 @@ const SPACING: f32 = 0.025;
 
 /// The curtain's cloth: identical particles, pinned along its top row.
 fn curtain_cloth() -> cloth_core::Cloth {
-    GridBuilder::new(ROWS, COLS)
-        .size(SPACING * (COLS - 1) as f32, SPACING * (ROWS - 1) as f32)
+    hanging_cloth(ROWS, COLS)
+}
+
+/// A hanging cloth of `rows` × `cols` identical particles spaced [`SPACING`], pinned along its
+/// top row.
+fn hanging_cloth(rows: usize, cols: usize) -> cloth_core::Cloth {
+    GridBuilder::new(rows, cols)
+        .size(SPACING * (cols - 1) as f32, SPACING * (rows - 1) as f32)
         .orientation(Orientation::Vertical)
         .mass(Mass::PerParticle(MASS))
         .pin_edge(Edge::Top)
@@ -428,13 +434,7 @@ fn shear_chains(sim: Simulation, bend: bool) -> Simulation {
 /// A sheet of `rows` × `cols` particles spaced [`SPACING`], pinned along its top edge, with
 /// warp, weft and shear springs (k, k, k/4), solved with chains and shear chains.
 fn sheared_sheet(rows: usize, cols: usize, substeps: u32) -> Simulation {
-    let cloth = GridBuilder::new(rows, cols)
-        .size(SPACING * (cols - 1) as f32, SPACING * (rows - 1) as f32)
-        .orientation(Orientation::Vertical)
-        .mass(Mass::PerParticle(MASS))
-        .pin_edge(Edge::Top)
-        .build()
-        .expect("cloth");
+    let cloth = hanging_cloth(rows, cols);
     let mut config = SimConfig {
         integrator: Integrator::Xpbd,
         substeps,

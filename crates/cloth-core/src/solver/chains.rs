@@ -408,6 +408,21 @@ pub(crate) enum Multipliers {
     Kept,
 }
 
+impl Multipliers {
+    /// What a solve's multipliers hold: `kept` when they carry values from before it (several
+    /// sweeps, or a later round), else `Fresh` when it adds them up (several Newton
+    /// iterations or rounds), else `Unused`.
+    pub(crate) fn of(kept: bool, add_up: bool) -> Self {
+        if kept {
+            Self::Kept
+        } else if add_up {
+            Self::Fresh
+        } else {
+            Self::Unused
+        }
+    }
+}
+
 /// `iterations` Newton iterations of the chain solves of a block (`XpbdSettings::
 /// chain_iterations`): [`solve`] again from the positions the previous iteration left, the
 /// multipliers adding up over the iterations (and over the rounds, `multipliers`).

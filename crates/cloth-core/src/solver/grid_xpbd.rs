@@ -554,13 +554,8 @@ impl XpbdGrid {
                         self.contacts(ctx.colliders, h);
                     }
                     let after = (fused && round + 1 < rounds).then_some((ctx.colliders, h));
-                    let multipliers = if self.keep || round > 0 {
-                        Multipliers::Kept
-                    } else if iterations > 1 || rounds > 1 {
-                        Multipliers::Fresh
-                    } else {
-                        Multipliers::Unused
-                    };
+                    let multipliers =
+                        Multipliers::of(self.keep || round > 0, iterations > 1 || rounds > 1);
                     for (class, mode) in modes.into_iter().enumerate().take(2) {
                         let Some(Mode::Compliant { alpha, gamma }) = mode else {
                             continue;
@@ -835,7 +830,7 @@ impl XpbdGrid {
     /// one block per row). The blocks keep their inverse masses and rest lengths between
     /// substeps and their start positions through a substep, as the warp's do.
     fn shear_chains(&mut self, dir: usize, (alpha, gamma, iterations): (f32, f32, u32)) {
-        use super::chains::{self, FIELDS, LANES, Multipliers};
+        use super::chains::{self, FIELDS, LANES};
         let (rows, cols) = (self.rows, self.cols);
         if rows < 2 || cols < 2 {
             return;
@@ -853,13 +848,7 @@ impl XpbdGrid {
         self.chain_work
             .prepare(PAIR * chains::SCRATCH * size, SCRATCH_SLOT);
         let keep = self.keep;
-        let multipliers = if keep {
-            Multipliers::Kept
-        } else if iterations > 1 {
-            Multipliers::Fresh
-        } else {
-            Multipliers::Unused
-        };
+        let multipliers = Multipliers::of(keep, iterations > 1);
         // The column of block `first`'s first lane at row `k` (its lanes take the next
         // columns, wrapped), and the first slot of their springs (an anti-diagonal's slot is
         // its upper end's column minus one).
@@ -871,11 +860,11 @@ impl XpbdGrid {
             }
         };
         let slot = move |c0: usize| if dir == 0 { c0 } else { (c0 + cols - 1) % cols };
-        // The lane whose spring crosses the wrap at row `k` (diagonal: from column cols − 1;
-        // anti-diagonal: from column 0), if among the block's `lanes`.
-        let cut = move |first: usize, k: usize, lanes: usize| {
-            let wrap = if dir == 0 { cols - 1 } else { 0 };
-            let l = (wrap + cols - start(first, k)) % cols;
+        // The lane of a run starting at column `c0` whose spring crosses the wrap (diagonal:
+        // from column cols − 1; anti-diagonal: from column 0), if among the block's `lanes`.
+        let wrap = if dir == 0 { cols - 1 } else { 0 };
+        let cut = move |c0: usize, lanes: usize| {
+            let l = (wrap + cols - c0) % cols;
             (l < lanes).then_some(l)
         };
         let work = &self.chain_work;
@@ -925,17 +914,12 @@ impl XpbdGrid {
                         if keep {
                             load(8, lambda, slot(c0));
                         }
-                        // No spring past a chain's last entry nor across the wrap.
-                        let (rest_k, lam_k) = (7 * size + at, 8 * size + at);
-                        if statics && k + 1 == len {
-                            block[rest_k..][..lanes].fill(-1.0);
-                        }
-                        if let Some(l) = cut(first, k, lanes) {
-                            block[rest_k + l] = -1.0;
-                            block[lam_k + l] = 0.0;
-                        }
-                        if keep && k + 1 == len {
-                            block[lam_k..][..lanes].fill(0.0);
+                        // No spring across the wrap (a static too). Past a chain's last
+                        // entry the solve reads no spring; a cut spring's multiplier is never
+                        // read and gains +0, and its slot, in the class's last column, holds
+                        // no spring either, so the multipliers go back as they are.
+                        if let (true, Some(l)) = (statics, cut(c0, lanes)) {
+                            block[7 * size + at + l] = -1.0;
                         }
                     }
                 }
@@ -977,15 +961,7 @@ impl XpbdGrid {
                         run_store(&block[f * size + at..][..lanes], dst, c0);
                     }
                     if keep && k + 1 < len {
-                        // The lane across the wrap holds no spring: its slot keeps its value.
-                        let s0 = slot(c0);
-                        let kept = cut(first, k, lanes)
-                            .map(|l| (s0 + l) % cols)
-                            .map(|c| (c, lam[c]));
-                        run_store(&block[8 * size + at..][..lanes], lam, s0);
-                        if let Some((c, v)) = kept {
-                            lam[c] = v;
-                        }
+                        run_store(&block[8 * size + at..][..lanes], lam, slot(c0));
                     }
                 }
             });
