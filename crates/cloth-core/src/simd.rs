@@ -9,12 +9,16 @@
 //! division are exact in every instruction set, so **all kernels give the same bits as the
 //! reference path** (tested in `tests/fast_path.rs`).
 //!
-//! One kernel is written with explicit intrinsics instead: the 16 × 16 tile transposes of the
-//! chain solves' blocks (`transpose16`), pure data movement (AVX shuffles; loads and stores
-//! through `bytemuck` casts of `[f32; 8]`, so without `unsafe`).
+//! A few kernels are written with explicit intrinsics instead: the 16 × 16 tile transposes of
+//! the chain solves' blocks (`transpose16`), pure data movement (AVX shuffles; loads and
+//! stores through `bytemuck` casts of `[f32; 8]`, so without `unsafe`), and two AVX-512
+//! kernels of XPBD's grid path with the compiled loop's arithmetic in its order (the same
+//! bits): the horizontal bend's groups of four (`xpbd_quads`) and the vertical pairs with a
+//! masked last vector (`xpbd_pairs`).
 //!
 //! This is the crate's only module with `unsafe`: calling a `#[target_feature]` function,
-//! which is sound only on a CPU that has the features; every call is guarded.
+//! which is sound only on a CPU that has the features (every call is guarded), and the
+//! AVX-512 kernels' loads and stores (bounds asserted or taken from slices of known length).
 #![allow(unsafe_code)]
 
 use std::cell::Cell;
@@ -222,16 +226,164 @@ dispatched! {
     ) -> BandResult = grid_kernel::band;
 }
 
+/// One vertical pass's two rows of the grid XPBD path (see `solver::grid_xpbd`), with
+/// `kernel` (the stepping thread's choice, passed on to the pool's workers): compliant pairs
+/// with AVX-512 by [`pairs_avx512`] (the same bits as the compiled loop), else
+/// [`grid_xpbd::pairs`] compiled for the kernel.
+pub(crate) fn xpbd_pairs(
+    kernel: Kernel,
+    a: [&mut [f32]; 3],
+    b: [&mut [f32]; 3],
+    shared: &Shared<'_>,
+    g: (usize, usize, usize),
+    lambda: &mut [f32],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if kernel == Kernel::Avx512
+        && Kernel::Avx512.is_available()
+        && let Some(input) = shared.pairs_input(g, lambda.len())
+    {
+        // SAFETY: the CPU has AVX-512 F (checked above).
+        unsafe { pairs_avx512(a, b, input, lambda) };
+        return;
+    }
+    xpbd_pairs_compiled(kernel, a, b, shared, g, lambda);
+}
+
 dispatched! {
-    /// One vertical pass's two rows of the grid XPBD path (see `solver::grid_xpbd`), with
-    /// `kernel` (the stepping thread's choice, passed on to the pool's workers).
-    fn xpbd_pairs / pairs_avx2 / pairs_avx512(
+    /// [`grid_xpbd::pairs`] compiled for `kernel` ([`xpbd_pairs`] without its AVX-512 kernel).
+    fn xpbd_pairs_compiled / pairs_compiled_avx2 / pairs_compiled_avx512(
         a: [&mut [f32]; 3],
         b: [&mut [f32]; 3],
         shared: &Shared<'_>,
         g: (usize, usize, usize),
         lambda: &mut [f32],
     ) = grid_xpbd::pairs;
+}
+
+/// [`xpbd_pairs`]' AVX-512 kernel for compliant pairs: 16 pairs `a[i]`–`b[i]` per vector,
+/// the last `m mod 16` by masked loads and stores (the compiler's loop ran those as 4-wide
+/// and scalar leftovers: about 30 % of its time on rows of 255 pairs), with
+/// [`grid_xpbd::pairs`]' arithmetic in its order (the same bits).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn pairs_avx512(
+    a: [&mut [f32]; 3],
+    b: [&mut [f32]; 3],
+    input: grid_xpbd::PairsInput<'_>,
+    lambda: &mut [f32],
+) {
+    use std::arch::x86_64::{
+        __m512, __mmask16, _CMP_GT_OQ, _mm512_add_ps, _mm512_cmp_ps_mask, _mm512_mask_cmp_ps_mask,
+        _mm512_mask_storeu_ps, _mm512_maskz_div_ps, _mm512_maskz_loadu_ps, _mm512_mul_ps,
+        _mm512_set1_ps, _mm512_setzero_ps, _mm512_sqrt_ps, _mm512_sub_ps,
+    };
+    align_frame();
+    let grid_xpbd::PairsInput {
+        prev_a,
+        prev_b,
+        wa,
+        wb,
+        rest,
+        params: (alpha, gamma),
+        keep,
+    } = input;
+    let m = lambda.len();
+    let [ax, ay, az] = a;
+    let [bx, by, bz] = b;
+    // Every slice holds at least `m` entries (checked here once: the loads and stores below
+    // read and write lanes `i .. i + 16` of them under a mask that keeps only `i .. m`).
+    for v in [&ax[..], &ay[..], &az[..], &bx[..], &by[..], &bz[..]] {
+        assert!(v.len() >= m, "a row shorter than its pairs");
+    }
+    for v in prev_a.iter().chain(&prev_b).chain([&wa, &wb, &rest]) {
+        assert!(v.len() >= m, "a row shorter than its pairs");
+    }
+    let (alpha, gamma) = (_mm512_set1_ps(alpha), _mm512_set1_ps(gamma));
+    let one_gamma = _mm512_add_ps(_mm512_set1_ps(1.0), gamma);
+    let minus_zero = _mm512_set1_ps(-0.0);
+    let zero = _mm512_setzero_ps();
+    let load = |k: __mmask16, v: &[f32], i: usize| -> __m512 {
+        // SAFETY: `v` holds at least `m` entries (asserted above) and the mask keeps lanes
+        // below `m - i` only; masked-off lanes are not read.
+        unsafe { _mm512_maskz_loadu_ps(k, v.as_ptr().add(i)) }
+    };
+    let store = |k: __mmask16, v: &mut [f32], i: usize, x: __m512| {
+        // SAFETY: as for `load`: lanes below `m - i` only, inside `v`.
+        unsafe { _mm512_mask_storeu_ps(v.as_mut_ptr().add(i), k, x) }
+    };
+    for i in (0..m).step_by(16) {
+        let k: __mmask16 = if m - i >= 16 {
+            0xFFFF
+        } else {
+            (1u16 << (m - i)) - 1
+        };
+        let (xa, ya, za) = (load(k, ax, i), load(k, ay, i), load(k, az, i));
+        let (xb, yb, zb) = (load(k, bx, i), load(k, by, i), load(k, bz, i));
+        let l = [
+            _mm512_sub_ps(xa, xb),
+            _mm512_sub_ps(ya, yb),
+            _mm512_sub_ps(za, zb),
+        ];
+        let d = [
+            _mm512_sub_ps(
+                _mm512_sub_ps(xa, load(k, prev_a[0], i)),
+                _mm512_sub_ps(xb, load(k, prev_b[0], i)),
+            ),
+            _mm512_sub_ps(
+                _mm512_sub_ps(ya, load(k, prev_a[1], i)),
+                _mm512_sub_ps(yb, load(k, prev_b[1], i)),
+            ),
+            _mm512_sub_ps(
+                _mm512_sub_ps(za, load(k, prev_a[2], i)),
+                _mm512_sub_ps(zb, load(k, prev_b[2], i)),
+            ),
+        ];
+        let lam = if keep { load(k, lambda, i) } else { zero };
+        let (wai, wbi) = (load(k, wa, i), load(k, wb, i));
+        // `grid_xpbd::pair_correction`'s operations, in its order.
+        let wsum = _mm512_add_ps(wai, wbi);
+        let len2 = _mm512_add_ps(
+            _mm512_add_ps(_mm512_mul_ps(l[0], l[0]), _mm512_mul_ps(l[1], l[1])),
+            _mm512_mul_ps(l[2], l[2]),
+        );
+        let len = _mm512_sqrt_ps(len2);
+        let ok = _mm512_mask_cmp_ps_mask::<_CMP_GT_OQ>(
+            _mm512_cmp_ps_mask::<_CMP_GT_OQ>(wsum, zero),
+            len,
+            zero,
+        );
+        let constraint = _mm512_sub_ps(len, load(k, rest, i));
+        let ld = _mm512_add_ps(
+            _mm512_add_ps(_mm512_mul_ps(l[0], d[0]), _mm512_mul_ps(l[1], d[1])),
+            _mm512_mul_ps(l[2], d[2]),
+        );
+        // −C is computed as −0 − C, the same bits as a negation for every C.
+        let num = _mm512_sub_ps(
+            _mm512_mul_ps(
+                _mm512_sub_ps(
+                    _mm512_sub_ps(minus_zero, constraint),
+                    _mm512_mul_ps(alpha, lam),
+                ),
+                len,
+            ),
+            _mm512_mul_ps(gamma, ld),
+        );
+        let den = _mm512_mul_ps(_mm512_add_ps(_mm512_mul_ps(one_gamma, wsum), alpha), len2);
+        let f = _mm512_maskz_div_ps(ok, num, den);
+        if keep {
+            store(k, lambda, i, _mm512_add_ps(lam, _mm512_mul_ps(f, len)));
+        }
+        let (sa, sb) = (_mm512_mul_ps(wai, f), _mm512_mul_ps(wbi, f));
+        for (va, vb, (pa, pb), l) in [
+            (&mut *ax, &mut *bx, (xa, xb), l[0]),
+            (&mut *ay, &mut *by, (ya, yb), l[1]),
+            (&mut *az, &mut *bz, (za, zb), l[2]),
+        ] {
+            store(k, va, i, _mm512_add_ps(pa, _mm512_mul_ps(sa, l)));
+            store(k, vb, i, _mm512_sub_ps(pb, _mm512_mul_ps(sb, l)));
+        }
+    }
 }
 
 dispatched! {

@@ -2110,7 +2110,47 @@ pub(crate) struct QuadsInput<'a> {
     pub(crate) params: (f32, f32),
 }
 
+/// What [`crate::simd::xpbd_pairs`]' AVX-512 kernel reads besides the two rows and the
+/// multipliers: the pairs' own entries (each slice from the pair's first, `m` long).
+pub(crate) struct PairsInput<'a> {
+    /// Start positions of the substep (x, y, z) of the first ends.
+    pub(crate) prev_a: [&'a [f32]; 3],
+    /// Start positions of the second ends.
+    pub(crate) prev_b: [&'a [f32]; 3],
+    /// Inverse masses of the first ends.
+    pub(crate) wa: &'a [f32],
+    /// Inverse masses of the second ends.
+    pub(crate) wb: &'a [f32],
+    /// Rest lengths by slot.
+    pub(crate) rest: &'a [f32],
+    /// The compliance `(α̃, γ)`.
+    pub(crate) params: (f32, f32),
+    /// Whether the multipliers are read and written.
+    pub(crate) keep: bool,
+}
+
 impl Shared<'_> {
+    /// The input of [`crate::simd::xpbd_pairs`]' AVX-512 kernel for the `m` pairs of
+    /// [`pairs`] at `g = (a0, b0, slot0)`; `None` for a limit (those take [`pairs`]).
+    pub(crate) fn pairs_input(
+        &self,
+        (ga, gb, gs): (usize, usize, usize),
+        m: usize,
+    ) -> Option<PairsInput<'_>> {
+        match self.mode {
+            Mode::Compliant { alpha, gamma } => Some(PairsInput {
+                prev_a: std::array::from_fn(|k| &self.prev[k][ga..ga + m]),
+                prev_b: std::array::from_fn(|k| &self.prev[k][gb..gb + m]),
+                wa: &self.w[ga..ga + m],
+                wb: &self.w[gb..gb + m],
+                rest: &self.rest[gs..gs + m],
+                params: (alpha, gamma),
+                keep: self.keep,
+            }),
+            Mode::Limit => None,
+        }
+    }
+
     /// The pass's input for [`crate::simd::xpbd_quads`]; `None` for a limit or with kept
     /// multipliers (those passes take the masked [`row`]).
     pub(crate) fn quads_input(&self) -> Option<QuadsInput<'_>> {
