@@ -447,7 +447,8 @@ pub(crate) fn xpbd_quads(
 
 /// [`xpbd_quads`]' AVX-512 kernel: spans of 32 columns (eight groups of four) as two vectors
 /// per field, the groups' columns 0, 1 and 2, 3 split into 16 lanes `a` and 16 lanes `b` by
-/// two-source permutes, one pair per lane, [`grid_xpbd::quads_scalar`] on the groups left.
+/// two-source permutes, one pair per lane; the last span by masked loads and stores (only the
+/// row's columns), its lanes past the row's pairs computed on zeros and left as they were.
 /// Every row slice starts at the colour's first column and holds `m + 2` entries.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
@@ -460,15 +461,14 @@ fn quads_avx512(
     params: (f32, f32),
 ) {
     use std::arch::x86_64::{
-        __m512, __m512i, _CMP_GT_OQ, _mm512_add_ps, _mm512_cmp_ps_mask, _mm512_div_ps,
-        _mm512_loadu_ps, _mm512_mask_blend_ps, _mm512_mul_ps, _mm512_permutex2var_ps,
-        _mm512_set1_ps, _mm512_setr_epi32, _mm512_setzero_ps, _mm512_sqrt_ps, _mm512_storeu_ps,
-        _mm512_sub_ps,
+        __m512, __m512i, __mmask16, _CMP_GT_OQ, _mm512_add_ps, _mm512_cmp_ps_mask, _mm512_div_ps,
+        _mm512_mask_blend_ps, _mm512_mask_storeu_ps, _mm512_maskz_loadu_ps, _mm512_mul_ps,
+        _mm512_permutex2var_ps, _mm512_set1_ps, _mm512_setr_epi32, _mm512_setzero_ps,
+        _mm512_sqrt_ps, _mm512_sub_ps,
     };
     const SPAN: usize = 32;
     align_frame();
     let n = m + 2;
-    let spans = n / SPAN;
     // Lanes `a`: columns 4g, 4g + 1 of the span's eight groups; lanes `b`: 4g + 2, 4g + 3.
     let ia: __m512i = _mm512_setr_epi32(0, 1, 4, 5, 8, 9, 12, 13, 16, 17, 20, 21, 24, 25, 28, 29);
     let ib: __m512i = _mm512_setr_epi32(2, 3, 6, 7, 10, 11, 14, 15, 18, 19, 22, 23, 26, 27, 30, 31);
@@ -476,13 +476,26 @@ fn quads_avx512(
     let lo: __m512i = _mm512_setr_epi32(0, 1, 16, 17, 2, 3, 18, 19, 4, 5, 20, 21, 6, 7, 22, 23);
     let hi: __m512i =
         _mm512_setr_epi32(8, 9, 24, 25, 10, 11, 26, 27, 12, 13, 28, 29, 14, 15, 30, 31);
-    let load = |v: &[f32], at: usize| -> (__m512, __m512) {
-        let v: &[f32; SPAN] = v[at..].first_chunk().expect("a whole span");
-        // SAFETY: `v` holds 32 floats: both loads are in bounds (unaligned loads).
+    // Every slice holds at least `n` entries (checked here once: the loads and stores below
+    // touch the span's columns below `n` only, by their masks).
+    for v in [&x[..], &y[..], &z[..], px, py, pz, w, rest] {
+        assert!(v.len() >= n, "a row shorter than its span");
+    }
+    // The span at `at`'s columns below `n`: masks of its two halves.
+    let columns = |at: usize| -> (__mmask16, __mmask16) {
+        let keep = |from: usize| match n.saturating_sub(at + from) {
+            0 => 0,
+            r if r >= 16 => 0xFFFF,
+            r => (1u16 << r) - 1,
+        };
+        (keep(0), keep(16))
+    };
+    let load = |v: &[f32], at: usize, (k0, k1): (__mmask16, __mmask16)| -> (__m512, __m512) {
+        // SAFETY: the masks keep the columns below `n` only, inside `v` (asserted above).
         let (v0, v1) = unsafe {
             (
-                _mm512_loadu_ps(v.as_ptr()),
-                _mm512_loadu_ps(v.as_ptr().add(16)),
+                _mm512_maskz_loadu_ps(k0, v.as_ptr().add(at)),
+                _mm512_maskz_loadu_ps(k1, v.as_ptr().add(at + 16)),
             )
         };
         (
@@ -490,43 +503,44 @@ fn quads_avx512(
             _mm512_permutex2var_ps(v0, ib, v1),
         )
     };
-    let store = |v: &mut [f32], at: usize, a: __m512, b: __m512| {
-        let v: &mut [f32; SPAN] = v[at..].first_chunk_mut().expect("a whole span");
-        let (v0, v1) = (
-            _mm512_permutex2var_ps(a, lo, b),
-            _mm512_permutex2var_ps(a, hi, b),
-        );
-        // SAFETY: `v` holds 32 floats: both stores are in bounds (unaligned stores).
-        unsafe {
-            _mm512_storeu_ps(v.as_mut_ptr(), v0);
-            _mm512_storeu_ps(v.as_mut_ptr().add(16), v1);
-        }
-    };
+    let store =
+        |v: &mut [f32], at: usize, (k0, k1): (__mmask16, __mmask16), a: __m512, b: __m512| {
+            let (v0, v1) = (
+                _mm512_permutex2var_ps(a, lo, b),
+                _mm512_permutex2var_ps(a, hi, b),
+            );
+            // SAFETY: as for `load`: the columns below `n` only, inside `v`.
+            unsafe {
+                _mm512_mask_storeu_ps(v.as_mut_ptr().add(at), k0, v0);
+                _mm512_mask_storeu_ps(v.as_mut_ptr().add(at + 16), k1, v1);
+            }
+        };
     let (alpha, gamma) = (_mm512_set1_ps(params.0), _mm512_set1_ps(params.1));
     let minus_zero = _mm512_set1_ps(-0.0);
     let one_gamma = _mm512_add_ps(_mm512_set1_ps(1.0), gamma);
     let zero = _mm512_setzero_ps();
-    for q in 0..spans {
+    for q in 0..n.div_ceil(SPAN) {
         let at = q * SPAN;
-        let (xa, xb) = load(x, at);
-        let (ya, yb) = load(y, at);
-        let (za, zb) = load(z, at);
-        let (pxa, pxb) = load(px, at);
-        let (pya, pyb) = load(py, at);
-        let (pza, pzb) = load(pz, at);
-        let (wa, wb) = load(w, at);
-        // Rest lengths by slot: the first ends' lanes only.
-        let ra = {
-            let r: &[f32; SPAN] = rest[at..].first_chunk().expect("a whole span");
-            // SAFETY: `r` holds 32 floats: both loads are in bounds (unaligned loads).
-            let (r0, r1) = unsafe {
-                (
-                    _mm512_loadu_ps(r.as_ptr()),
-                    _mm512_loadu_ps(r.as_ptr().add(16)),
-                )
-            };
-            _mm512_permutex2var_ps(r0, ia, r1)
+        let k = columns(at);
+        // The span's pairs `(i, i + 2)` with `i < m` (every pair of a whole span; the last
+        // span's lanes past them are computed on zeros and left unwritten).
+        let pairs: __mmask16 = if at + SPAN <= n {
+            0xFFFF
+        } else {
+            (0..16).fold(0, |mask, lane| {
+                let i = at + 4 * (lane / 2) + lane % 2;
+                if i < m { mask | (1 << lane) } else { mask }
+            })
         };
+        let (xa, xb) = load(x, at, k);
+        let (ya, yb) = load(y, at, k);
+        let (za, zb) = load(z, at, k);
+        let (pxa, pxb) = load(px, at, k);
+        let (pya, pyb) = load(py, at, k);
+        let (pza, pzb) = load(pz, at, k);
+        let (wa, wb) = load(w, at, k);
+        // Rest lengths by slot: the first ends' lanes only.
+        let (ra, _) = load(rest, at, k);
         // `grid_xpbd::pair_correction`'s operations, in its order.
         let l = [
             _mm512_sub_ps(xa, xb),
@@ -571,20 +585,13 @@ fn quads_avx512(
             (&mut *z, (za, zb), l[2]),
         ] {
             let c = _mm512_mul_ps(f, l);
-            let a = _mm512_add_ps(a, _mm512_mul_ps(wa, c));
-            let b = _mm512_sub_ps(b, _mm512_mul_ps(wb, c));
-            store(v, at, a, b);
+            // Ends of the span's pairs past `m` keep their values (bit for bit: adding a zero
+            // correction would turn −0 into +0).
+            let a = _mm512_mask_blend_ps(pairs, a, _mm512_add_ps(a, _mm512_mul_ps(wa, c)));
+            let b = _mm512_mask_blend_ps(pairs, b, _mm512_sub_ps(b, _mm512_mul_ps(wb, c)));
+            store(v, at, k, a, b);
         }
     }
-    grid_xpbd::quads_scalar(
-        [x, y, z],
-        [px, py, pz],
-        w,
-        rest,
-        m,
-        spans * SPAN / 4..n.div_ceil(4),
-        params,
-    );
 }
 
 dispatched! {

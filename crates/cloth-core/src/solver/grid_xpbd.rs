@@ -2168,10 +2168,11 @@ impl Shared<'_> {
 
 /// The pairs `(i, i + 2)` for `i` in `4·q .. 4·q + 2`, `q` in `groups`, of a row seen from
 /// its colour's first column (`x`, `prev`, `w` from there, `rest` by slot from there; `m`
-/// slots): a horizontal pass at spacing 2 (colour `⌊c / 2⌋ mod 2`) on the groups of four
-/// columns a vector kernel left, with the masked [`row`]'s arithmetic (the same bits), in
-/// place. Compliant pairs, multipliers not kept.
-#[inline(always)]
+/// slots): a horizontal pass at spacing 2 (colour `⌊c / 2⌋ mod 2`) on groups of four
+/// columns, with the masked [`row`]'s arithmetic (the same bits), in place. Compliant pairs,
+/// multipliers not kept. The scalar form of [`crate::simd::xpbd_quads`]' kernel, which the
+/// tests hold to the masked row's bits on every CPU.
+#[cfg(test)]
 pub(crate) fn quads_scalar(
     [x, y, z]: [&mut [f32]; 3],
     [px, py, pz]: [&[f32]; 3],
@@ -2365,10 +2366,10 @@ mod tests {
 
     /// A pass at spacing 2 computed only on its colour's pairs ([`crate::simd::xpbd_quads`],
     /// AVX-512) gives the masked row's bits ([`row`], every slot computed, half kept), on rows
-    /// of every length around the kernel's 32-column spans, both colours, with pinned
-    /// particles (zero inverse mass) and coincident ends (zero length) among them; so does
-    /// the scalar pass the AVX-512 kernel ends rows with ([`quads_scalar`], run here on whole
-    /// rows, on every CPU). Tolerance: none. On a CPU without AVX-512 the quads must decline
+    /// of every length around the kernel's 32-column spans (the last span masked), both
+    /// colours, with pinned particles (zero inverse mass) and coincident ends (zero length)
+    /// among them; so does the same arithmetic in scalar form ([`quads_scalar`], on every
+    /// CPU). Tolerance: none. On a CPU without AVX-512 the quads must decline
     /// (the caller then takes the row).
     #[test]
     fn quads_give_the_masked_rows_bits() {
