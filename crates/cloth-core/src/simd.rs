@@ -646,8 +646,9 @@ dispatched! {
 
 dispatched! {
     /// Continuous collision's candidates of a run of particles against spheres and planes that
-    /// do not turn ([`grid_kernel::ccd_mask`]; the same mask on every kernel), for callers outside
-    /// a dispatched kernel (XPBD's finishing pass; the explicit band inlines it).
+    /// do not turn ([`grid_kernel::ccd_mask_screened`]; the same mask on every kernel), for
+    /// callers outside a dispatched kernel (XPBD's finishing pass; the explicit band inlines
+    /// [`grid_kernel::ccd_mask`]).
     fn ccd_mask / ccd_mask_avx2 / ccd_mask_avx512(
         colliders: &[crate::collide::Collider],
         h: f32,
@@ -655,7 +656,7 @@ dispatched! {
         a: [&[f32]; 3],
         b: [&[f32]; 3],
         near: &mut [bool],
-    ) -> bool = grid_kernel::ccd_mask;
+    ) -> bool = grid_kernel::ccd_mask_screened;
 }
 
 dispatched! {
