@@ -274,9 +274,8 @@ fn pairs_avx512(
     lambda: &mut [f32],
 ) {
     use std::arch::x86_64::{
-        __m512, __mmask16, _CMP_GT_OQ, _mm512_add_ps, _mm512_cmp_ps_mask, _mm512_mask_cmp_ps_mask,
-        _mm512_mask_storeu_ps, _mm512_maskz_div_ps, _mm512_maskz_loadu_ps, _mm512_mul_ps,
-        _mm512_set1_ps, _mm512_setzero_ps, _mm512_sqrt_ps, _mm512_sub_ps,
+        __m512, __mmask16, _mm512_add_ps, _mm512_mask_storeu_ps, _mm512_maskz_loadu_ps,
+        _mm512_mul_ps, _mm512_setzero_ps, _mm512_sub_ps,
     };
     align_frame();
     let grid_xpbd::PairsInput {
@@ -285,7 +284,7 @@ fn pairs_avx512(
         wa,
         wb,
         rest,
-        params: (alpha, gamma),
+        params,
         keep,
     } = input;
     let m = lambda.len();
@@ -299,9 +298,6 @@ fn pairs_avx512(
     for v in prev_a.iter().chain(&prev_b).chain([&wa, &wb, &rest]) {
         assert!(v.len() >= m, "a row shorter than its pairs");
     }
-    let (alpha, gamma) = (_mm512_set1_ps(alpha), _mm512_set1_ps(gamma));
-    let one_gamma = _mm512_add_ps(_mm512_set1_ps(1.0), gamma);
-    let minus_zero = _mm512_set1_ps(-0.0);
     let zero = _mm512_setzero_ps();
     let load = |k: __mmask16, v: &[f32], i: usize| -> __m512 {
         // SAFETY: `v` holds at least `m` entries (asserted above) and the mask keeps lanes
@@ -320,57 +316,16 @@ fn pairs_avx512(
         };
         let (xa, ya, za) = (load(k, ax, i), load(k, ay, i), load(k, az, i));
         let (xb, yb, zb) = (load(k, bx, i), load(k, by, i), load(k, bz, i));
-        let l = [
-            _mm512_sub_ps(xa, xb),
-            _mm512_sub_ps(ya, yb),
-            _mm512_sub_ps(za, zb),
-        ];
-        let d = [
-            _mm512_sub_ps(
-                _mm512_sub_ps(xa, load(k, prev_a[0], i)),
-                _mm512_sub_ps(xb, load(k, prev_b[0], i)),
-            ),
-            _mm512_sub_ps(
-                _mm512_sub_ps(ya, load(k, prev_a[1], i)),
-                _mm512_sub_ps(yb, load(k, prev_b[1], i)),
-            ),
-            _mm512_sub_ps(
-                _mm512_sub_ps(za, load(k, prev_a[2], i)),
-                _mm512_sub_ps(zb, load(k, prev_b[2], i)),
-            ),
-        ];
         let lam = if keep { load(k, lambda, i) } else { zero };
         let (wai, wbi) = (load(k, wa, i), load(k, wb, i));
-        // `grid_xpbd::pair_correction`'s operations, in its order.
-        let wsum = _mm512_add_ps(wai, wbi);
-        let len2 = _mm512_add_ps(
-            _mm512_add_ps(_mm512_mul_ps(l[0], l[0]), _mm512_mul_ps(l[1], l[1])),
-            _mm512_mul_ps(l[2], l[2]),
+        let (l, f, len) = pair_lanes(
+            ([xa, ya, za], [xb, yb, zb]),
+            (prev_a.map(|p| load(k, p, i)), prev_b.map(|p| load(k, p, i))),
+            _mm512_add_ps(wai, wbi),
+            load(k, rest, i),
+            lam,
+            params,
         );
-        let len = _mm512_sqrt_ps(len2);
-        let ok = _mm512_mask_cmp_ps_mask::<_CMP_GT_OQ>(
-            _mm512_cmp_ps_mask::<_CMP_GT_OQ>(wsum, zero),
-            len,
-            zero,
-        );
-        let constraint = _mm512_sub_ps(len, load(k, rest, i));
-        let ld = _mm512_add_ps(
-            _mm512_add_ps(_mm512_mul_ps(l[0], d[0]), _mm512_mul_ps(l[1], d[1])),
-            _mm512_mul_ps(l[2], d[2]),
-        );
-        // −C is computed as −0 − C, the same bits as a negation for every C.
-        let num = _mm512_sub_ps(
-            _mm512_mul_ps(
-                _mm512_sub_ps(
-                    _mm512_sub_ps(minus_zero, constraint),
-                    _mm512_mul_ps(alpha, lam),
-                ),
-                len,
-            ),
-            _mm512_mul_ps(gamma, ld),
-        );
-        let den = _mm512_mul_ps(_mm512_add_ps(_mm512_mul_ps(one_gamma, wsum), alpha), len2);
-        let f = _mm512_maskz_div_ps(ok, num, den);
         if keep {
             store(k, lambda, i, _mm512_add_ps(lam, _mm512_mul_ps(f, len)));
         }
@@ -445,6 +400,75 @@ pub(crate) fn xpbd_quads(
     false
 }
 
+/// `grid_xpbd::pair_correction` for 16 compliant pairs in AVX-512 lanes, its operations in its
+/// order (the same bits): from the ends' positions `(a, b)` and start positions, `wsum =
+/// w_a + w_b`, the rest lengths and the multipliers, the pairs' `l = a − b`, the factor
+/// `f = s` (zero where a pair does not move) and `|l|`. Shared by [`pairs_avx512`] and
+/// [`quads_avx512`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+fn pair_lanes(
+    (a, b): (
+        [std::arch::x86_64::__m512; 3],
+        [std::arch::x86_64::__m512; 3],
+    ),
+    (pa, pb): (
+        [std::arch::x86_64::__m512; 3],
+        [std::arch::x86_64::__m512; 3],
+    ),
+    wsum: std::arch::x86_64::__m512,
+    rest: std::arch::x86_64::__m512,
+    lambda: std::arch::x86_64::__m512,
+    (alpha, gamma): (f32, f32),
+) -> (
+    [std::arch::x86_64::__m512; 3],
+    std::arch::x86_64::__m512,
+    std::arch::x86_64::__m512,
+) {
+    use std::arch::x86_64::{
+        _CMP_GT_OQ, _mm512_add_ps, _mm512_cmp_ps_mask, _mm512_mask_cmp_ps_mask,
+        _mm512_maskz_div_ps, _mm512_mul_ps, _mm512_set1_ps, _mm512_setzero_ps, _mm512_sqrt_ps,
+        _mm512_sub_ps,
+    };
+    let (alpha, gamma) = (_mm512_set1_ps(alpha), _mm512_set1_ps(gamma));
+    let zero = _mm512_setzero_ps();
+    let l: [_; 3] = std::array::from_fn(|c| _mm512_sub_ps(a[c], b[c]));
+    let d: [_; 3] = std::array::from_fn(|c| {
+        _mm512_sub_ps(_mm512_sub_ps(a[c], pa[c]), _mm512_sub_ps(b[c], pb[c]))
+    });
+    let len2 = _mm512_add_ps(
+        _mm512_add_ps(_mm512_mul_ps(l[0], l[0]), _mm512_mul_ps(l[1], l[1])),
+        _mm512_mul_ps(l[2], l[2]),
+    );
+    let len = _mm512_sqrt_ps(len2);
+    let ok = _mm512_mask_cmp_ps_mask::<_CMP_GT_OQ>(
+        _mm512_cmp_ps_mask::<_CMP_GT_OQ>(wsum, zero),
+        len,
+        zero,
+    );
+    let constraint = _mm512_sub_ps(len, rest);
+    let ld = _mm512_add_ps(
+        _mm512_add_ps(_mm512_mul_ps(l[0], d[0]), _mm512_mul_ps(l[1], d[1])),
+        _mm512_mul_ps(l[2], d[2]),
+    );
+    // s = ((−C − α̃·λ)·|l| − γ·(l·d)) / (((1 + γ)·wsum + α̃)·|l|²), zero where not `ok`;
+    // −C is computed as −0 − C, the same bits as a negation for every C.
+    let num = _mm512_sub_ps(
+        _mm512_mul_ps(
+            _mm512_sub_ps(
+                _mm512_sub_ps(_mm512_set1_ps(-0.0), constraint),
+                _mm512_mul_ps(alpha, lambda),
+            ),
+            len,
+        ),
+        _mm512_mul_ps(gamma, ld),
+    );
+    let one_gamma = _mm512_add_ps(_mm512_set1_ps(1.0), gamma);
+    let den = _mm512_mul_ps(_mm512_add_ps(_mm512_mul_ps(one_gamma, wsum), alpha), len2);
+    (l, _mm512_maskz_div_ps(ok, num, den), len)
+}
+
 /// [`xpbd_quads`]' AVX-512 kernel: spans of 32 columns (eight groups of four) as two vectors
 /// per field, the groups' columns 0, 1 and 2, 3 split into 16 lanes `a` and 16 lanes `b` by
 /// two-source permutes, one pair per lane; the last span by masked loads and stores (only the
@@ -461,10 +485,9 @@ fn quads_avx512(
     params: (f32, f32),
 ) {
     use std::arch::x86_64::{
-        __m512, __m512i, __mmask16, _CMP_GT_OQ, _mm512_add_ps, _mm512_cmp_ps_mask, _mm512_div_ps,
-        _mm512_mask_blend_ps, _mm512_mask_storeu_ps, _mm512_maskz_loadu_ps, _mm512_mul_ps,
-        _mm512_permutex2var_ps, _mm512_set1_ps, _mm512_setr_epi32, _mm512_setzero_ps,
-        _mm512_sqrt_ps, _mm512_sub_ps,
+        __m512, __m512i, __mmask16, _mm512_add_ps, _mm512_mask_blend_ps, _mm512_mask_storeu_ps,
+        _mm512_maskz_loadu_ps, _mm512_mul_ps, _mm512_permutex2var_ps, _mm512_setr_epi32,
+        _mm512_setzero_ps, _mm512_sub_ps,
     };
     const SPAN: usize = 32;
     align_frame();
@@ -515,9 +538,6 @@ fn quads_avx512(
                 _mm512_mask_storeu_ps(v.as_mut_ptr().add(at + 16), k1, v1);
             }
         };
-    let (alpha, gamma) = (_mm512_set1_ps(params.0), _mm512_set1_ps(params.1));
-    let minus_zero = _mm512_set1_ps(-0.0);
-    let one_gamma = _mm512_add_ps(_mm512_set1_ps(1.0), gamma);
     let zero = _mm512_setzero_ps();
     for q in 0..n.div_ceil(SPAN) {
         let at = q * SPAN;
@@ -541,44 +561,14 @@ fn quads_avx512(
         let (wa, wb) = load(w, at, k);
         // Rest lengths by slot: the first ends' lanes only.
         let (ra, _) = load(rest, at, k);
-        // `grid_xpbd::pair_correction`'s operations, in its order.
-        let l = [
-            _mm512_sub_ps(xa, xb),
-            _mm512_sub_ps(ya, yb),
-            _mm512_sub_ps(za, zb),
-        ];
-        let d = [
-            _mm512_sub_ps(_mm512_sub_ps(xa, pxa), _mm512_sub_ps(xb, pxb)),
-            _mm512_sub_ps(_mm512_sub_ps(ya, pya), _mm512_sub_ps(yb, pyb)),
-            _mm512_sub_ps(_mm512_sub_ps(za, pza), _mm512_sub_ps(zb, pzb)),
-        ];
-        let wsum = _mm512_add_ps(wa, wb);
-        let len2 = _mm512_add_ps(
-            _mm512_add_ps(_mm512_mul_ps(l[0], l[0]), _mm512_mul_ps(l[1], l[1])),
-            _mm512_mul_ps(l[2], l[2]),
+        let (l, f, _) = pair_lanes(
+            ([xa, ya, za], [xb, yb, zb]),
+            ([pxa, pya, pza], [pxb, pyb, pzb]),
+            _mm512_add_ps(wa, wb),
+            ra,
+            zero,
+            params,
         );
-        let len = _mm512_sqrt_ps(len2);
-        let ok = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(wsum, zero)
-            & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(len, zero);
-        let constraint = _mm512_sub_ps(len, ra);
-        let ld = _mm512_add_ps(
-            _mm512_add_ps(_mm512_mul_ps(l[0], d[0]), _mm512_mul_ps(l[1], d[1])),
-            _mm512_mul_ps(l[2], d[2]),
-        );
-        // s = ((−C − α̃·0)·|l| − γ·(l·d)) / (((1 + γ)·wsum + α̃)·|l|²), zero where not `ok`;
-        // −C is computed as −0 − C, the same bits as a negation for every C.
-        let num = _mm512_sub_ps(
-            _mm512_mul_ps(
-                _mm512_sub_ps(
-                    _mm512_sub_ps(minus_zero, constraint),
-                    _mm512_mul_ps(alpha, zero),
-                ),
-                len,
-            ),
-            _mm512_mul_ps(gamma, ld),
-        );
-        let den = _mm512_mul_ps(_mm512_add_ps(_mm512_mul_ps(one_gamma, wsum), alpha), len2);
-        let f = _mm512_mask_blend_ps(ok, zero, _mm512_div_ps(num, den));
         for (v, (a, b), l) in [
             (&mut *x, (xa, xb), l[0]),
             (&mut *y, (ya, yb), l[1]),

@@ -289,14 +289,16 @@ fn assert_matches_reference(name: &str, sim: Simulation, steps: usize) {
 
 /// Determinism: the chain blocks are independent and written back to disjoint rows, so 1, 2
 /// and 3 threads and every kernel give the same bits (the full drape: shear, bend, contacts,
-/// wind). Tolerance: none.
+/// wind; also with two sweeps, whose shear and bend pairs keep their multipliers). Tolerance:
+/// none.
 #[test]
 fn chains_are_bit_identical_across_threads_and_kernels() {
     let rounds = configured(drape(40, 8, true, true), |c| {
         c.xpbd.chain_rounds = 2;
         c.xpbd.chain_iterations = 2;
     });
-    assert_same_bits_across_threads_and_kernels([drape(40, 8, true, true), rounds]);
+    let sweeps = configured(drape(40, 8, true, true), |c| c.xpbd.iterations = 2);
+    assert_same_bits_across_threads_and_kernels([drape(40, 8, true, true), rounds, sweeps]);
 }
 
 /// For each simulation, 40 steps on 1, 2 and 3 threads with every available kernel give the

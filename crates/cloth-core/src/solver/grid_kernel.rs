@@ -1181,7 +1181,7 @@ fn ccd_mask_soa(
     near: &mut [bool],
 ) -> bool {
     let cols = job.cols;
-    ccd_mask(
+    ccd_mask::<false>(
         job.colliders,
         job.h,
         &job.inv_mass[s * cols..][..cols],
@@ -1196,36 +1196,13 @@ fn ccd_mask_soa(
 /// substep `h` would leave alone at every collider without marching. Every collider must be
 /// a sphere or a plane that does not turn. Returns whether any `near[k]` is set (so callers
 /// need not scan the mask for a run with none).
+///
+/// With `SCREEN`, a chunk of particles that all moved less than the tolerance (or are pinned)
+/// skips the other tests' square roots, with the same mask: for a cloth that settles (XPBD's
+/// finishing pass, [`ccd_mask_screened`]). The explicit band runs without it: its peer
+/// scene's chunks never pass the screen, which cost it 1–2 %.
 #[inline(always)]
-pub(crate) fn ccd_mask(
-    colliders: &[Collider],
-    h: f32,
-    w: &[f32],
-    a: [&[f32]; 3],
-    b: [&[f32]; 3],
-    near: &mut [bool],
-) -> bool {
-    ccd_mask_in::<false>(colliders, h, w, a, b, near)
-}
-
-/// [`ccd_mask`] with a screen of the chunks of particles that all moved less than the
-/// tolerance (or are pinned), which then skip the other tests' square roots: for a cloth that
-/// settles (XPBD's finishing pass); the same mask. (The explicit band, whose peer scene's
-/// chunks never pass the screen, runs without it: the screen cost it 1–2 %.)
-#[inline(always)]
-pub(crate) fn ccd_mask_screened(
-    colliders: &[Collider],
-    h: f32,
-    w: &[f32],
-    a: [&[f32]; 3],
-    b: [&[f32]; 3],
-    near: &mut [bool],
-) -> bool {
-    ccd_mask_in::<true>(colliders, h, w, a, b, near)
-}
-
-#[inline(always)]
-fn ccd_mask_in<const SCREEN: bool>(
+pub(crate) fn ccd_mask<const SCREEN: bool>(
     colliders: &[Collider],
     h: f32,
     w: &[f32],
@@ -1255,20 +1232,27 @@ fn ccd_mask_in<const SCREEN: bool>(
         // ending too shallow to be corrected: [`ccd::shallow`]),
         // with `|` (no short-circuit, no branch), and what the others need: the start point,
         // the path, its length and `φ(b)`.
-        let cheap = |w: f32, [ax, ay, az]: [f32; 3], [bx, by, bz]: [f32; 3]| {
+        // The start point, the path and its squared length.
+        let path = |[ax, ay, az]: [f32; 3], [bx, by, bz]: [f32; 3]| {
             let (sx, sy, sz) = (ax + shift.x, ay + shift.y, az + shift.z);
             let (qx, qy, qz) = (bx - sx, by - sy, bz - sz);
-            let l2 = qx * qx + qy * qy + qz * qz;
+            ([sx, sy, sz], [qx, qy, qz], qx * qx + qy * qy + qz * qz)
+        };
+        // Pinned, or a path under the tolerance: the two cheap tests without a square root.
+        let short = 0.2 * tau * tau;
+        let still = |w: f32, l2: f32| (w == 0.0) | (l2 < short);
+        let cheap = |w: f32, a: [f32; 3], b: [f32; 3]| {
+            let (s, q, l2) = path(a, b);
+            let [bx, by, bz] = b;
             let len = l2.sqrt();
             // The signed distance alone (the unused normal's divisions are dead code).
             let db = lane_distance(sphere, p, r, n, [bx, by, bz]).0;
-            let skip = (w == 0.0)
-                | (l2 < 0.2 * tau * tau)
+            let skip = still(w, l2)
                 | len.is_nan()
                 | (len < 0.5 * tau)
                 | (db >= len)
                 | ccd::shallow(radius, tau, len, db);
-            (skip, [sx, sy, sz], [qx, qy, qz], len, db, l2)
+            (skip, s, q, len, db, l2)
         };
         // The other tests: `φ(a) < 0`, `φ(a) + φ(b) ≥ |b − a|`, touching at the start and
         // leaving (`(b − a)·n ≥ −τ`).
@@ -1290,7 +1274,6 @@ fn ccd_mask_in<const SCREEN: bool>(
         // screen without the other tests' square roots: a settled cloth's every chunk. The
         // screen runs on the first chunk and after chunks that would have passed it: a run of
         // falling particles pays for it once.
-        let short = 0.2 * tau * tau;
         let mut screen = SCREEN;
         for (i, near) in nc.iter_mut().enumerate() {
             let (w, ax, ay, az) = (&wc[i], &axc[i], &ayc[i], &azc[i]);
@@ -1298,10 +1281,8 @@ fn ccd_mask_in<const SCREEN: bool>(
             if screen {
                 let mut moved = false;
                 for l in 0..LANES {
-                    let (sx, sy, sz) = (ax[l] + shift.x, ay[l] + shift.y, az[l] + shift.z);
-                    let (qx, qy, qz) = (bx[l] - sx, by[l] - sy, bz[l] - sz);
-                    let l2 = qx * qx + qy * qy + qz * qz;
-                    moved |= !((w[l] == 0.0) | (l2 < short));
+                    let (_, _, l2) = path([ax[l], ay[l], az[l]], [bx[l], by[l], bz[l]]);
+                    moved |= !still(w[l], l2);
                 }
                 if !moved {
                     continue;
@@ -1320,7 +1301,7 @@ fn ccd_mask_in<const SCREEN: bool>(
                     cheap(w[l], [ax[l], ay[l], az[l]], [bx[l], by[l], bz[l]]);
                 (skip[l], len[l], db[l]) = (k, length, d);
                 live |= !k;
-                moved |= !((w[l] == 0.0) | (l2 < short));
+                moved |= !still(w[l], l2);
                 [sx[l], sy[l], sz[l]] = s;
                 [qx[l], qy[l], qz[l]] = q;
             }
@@ -1345,6 +1326,20 @@ fn ccd_mask_in<const SCREEN: bool>(
         }
     }
     any
+}
+
+/// [`ccd_mask`] with its screen, as a plain function for `simd`'s dispatcher (which infers no
+/// `bool` parameter).
+#[inline(always)]
+pub(crate) fn ccd_mask_screened(
+    colliders: &[Collider],
+    h: f32,
+    w: &[f32],
+    a: [&[f32]; 3],
+    b: [&[f32]; 3],
+    near: &mut [bool],
+) -> bool {
+    ccd_mask::<true>(colliders, h, w, a, b, near)
 }
 
 /// `Shape::distance` of a sphere (`sphere`: centre `p`, radius `r`) or a plane (point `p`,
