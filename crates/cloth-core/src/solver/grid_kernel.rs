@@ -1228,10 +1228,6 @@ pub(crate) fn ccd_mask<const SCREEN: bool>(
         // `resolve_in`'s start point in the collider's end pose (no turn): a + (p₁ − p₀).
         let pivot_end = col.shape.pivot();
         let shift = pivot_end - (pivot_end - col.velocity * h);
-        // `resolve_in`'s cheap tests of one particle (pinned, path under ½τ, `φ(b) ≥ |b − a|`,
-        // ending too shallow to be corrected: [`ccd::shallow`]),
-        // with `|` (no short-circuit, no branch), and what the others need: the start point,
-        // the path, its length and `φ(b)`.
         // The start point, the path and its squared length.
         let path = |[ax, ay, az]: [f32; 3], [bx, by, bz]: [f32; 3]| {
             let (sx, sy, sz) = (ax + shift.x, ay + shift.y, az + shift.z);
@@ -1241,6 +1237,10 @@ pub(crate) fn ccd_mask<const SCREEN: bool>(
         // Pinned, or a path under the tolerance: the two cheap tests without a square root.
         let short = 0.2 * tau * tau;
         let still = |w: f32, l2: f32| (w == 0.0) | (l2 < short);
+        // `resolve_in`'s cheap tests of one particle (pinned, path under ½τ, `φ(b) ≥ |b − a|`,
+        // ending too shallow to be corrected: [`ccd::shallow`]), with `|` (no short-circuit,
+        // no branch), and what the others need: the start point, the path, its length and
+        // `φ(b)`.
         let cheap = |w: f32, a: [f32; 3], b: [f32; 3]| {
             let (s, q, l2) = path(a, b);
             let [bx, by, bz] = b;
