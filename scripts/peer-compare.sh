@@ -36,6 +36,7 @@ frames=$(python3 -c "print(max(20, int($seconds * 4e7 / ($n * $n * $substeps))))
 # the cloth when it blows up): time the frames before that.
 if (( n <= 64 )); then frames=12; fi
 
+"$(dirname "$0")/host-line.sh"
 log=$(mktemp)
 for r in $(seq 1 "$rounds"); do
   echo "== round $r/$rounds (n = $n)"

@@ -28,6 +28,7 @@ shift 3
 bin=${CLOTH:-target/release/cloth}
 out=$(mktemp -d)
 damping=$(python3 -c "print(repr(2e-4 * (48 / $res) ** 2))")
+"$(dirname "$0")/host-line.sh"
 printf '%-6s %-9s %-6s %-7s %-7s %-6s %-6s %12s %9s %9s %9s %9s %12s %10s %10s %11s\n' res substeps sweeps levels chains newton rounds ms/frame p50% p99% p99.9% max% penetration E_spring/J late_max% late_shear%
 for setting in "$@"; do
   IFS=: read -r substeps levels mode sweeps newton rounds shear <<<"$setting"

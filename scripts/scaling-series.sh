@@ -11,6 +11,7 @@ sizes=("${@:-32 64 128 256 512}")
 read -r -a sizes <<< "${sizes[*]}"
 bin=${CLOTH:-target/release/cloth}
 out=$(mktemp -d)
+"$(dirname "$0")/host-line.sh"
 printf '%-5s %-9s %-7s %-8s %14s %14s\n' n substeps frames status "1 thread" "2 threads"
 for n in "${sizes[@]}"; do
   mapfile -t sets < <(python3 "$(dirname "$0")/peer-params.py" "$n")

@@ -761,6 +761,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
             "format": "cloth-report-1",
             "scene": scene.to_toml(),
             "versions": { "cloth": env!("CARGO_PKG_VERSION") },
+            "host": host(),
             "threads": args.threads,
             "kernel": kernel.name(),
             "particles": particles,
@@ -814,4 +815,19 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         eprintln!("error: the simulation became unstable: {status_line}");
     }
     Ok(code)
+}
+
+/// The machine a run's timings come from: the CPU's model name (from `/proc/cpuinfo`; `null`
+/// where the system has none) and the logical CPUs the process may use. Timings differ by 2×
+/// between hosts of the same core count, so a report says which one it was measured on.
+fn host() -> serde_json::Value {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|text| {
+            text.lines()
+                .find_map(|line| line.strip_prefix("model name")?.split_once(':'))
+                .map(|(_, name)| name.trim().to_owned())
+        });
+    let logical = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+    serde_json::json!({ "cpu": cpu, "logical_cpus": logical })
 }

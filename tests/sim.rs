@@ -202,6 +202,7 @@ fn report_has_its_documented_fields() {
     for key in [
         "scene",
         "versions",
+        "host",
         "threads",
         "particles",
         "springs",
@@ -223,6 +224,16 @@ fn report_has_its_documented_fields() {
     assert_eq!(r["threads"], 2);
     assert_eq!(r["particles"], 64);
     assert_eq!(r["integrator"], "implicit-euler");
+    // The host: the CPU's model where the system names it (Linux: always), and at least one
+    // logical CPU.
+    let cpu = &r["host"]["cpu"];
+    if Path::new("/proc/cpuinfo").exists() {
+        assert!(
+            cpu.as_str().is_some_and(|name| !name.is_empty()),
+            "host.cpu: {cpu}"
+        );
+    }
+    assert!(r["host"]["logical_cpus"].as_u64().is_some_and(|n| n >= 1));
     let frames = r["frames"].as_array().expect("frames");
     assert_eq!(frames.len(), 5);
     for key in [
