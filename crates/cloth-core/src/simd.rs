@@ -14,7 +14,10 @@
 //! stores through `bytemuck` casts of `[f32; 8]`, so without `unsafe`), and two AVX-512
 //! kernels of XPBD's grid path with the compiled loop's arithmetic in its order (the same
 //! bits): the horizontal bend's groups of four (`xpbd_quads`) and the vertical pairs with a
-//! masked last vector (`xpbd_pairs`).
+//! masked last vector (`xpbd_pairs`), and the explicit integrators' fused row (`fused_row`): a grid
+//! row's six spring classes and its integration per chunk of 16 particles in registers, the
+//! compiled path's operations in their order (the same bits; about 1.3× the peer scene's
+//! throughput of the compiled AVX-512 band on the Zen 4 host).
 //!
 //! This is the crate's only module with `unsafe`: calling a `#[target_feature]` function,
 //! which is sound only on a CPU that has the features (every call is guarded), and the
@@ -224,6 +227,466 @@ dispatched! {
         band: &mut Band,
         dest: Dest<'_>,
     ) -> BandResult = grid_kernel::band;
+}
+
+/// One row of the explicit grid fast path, as [`fused_row`] computes it: the old state's rows
+/// and the row's parameters.
+pub(crate) struct FusedRow<'a> {
+    /// The row, the grid's rows and columns.
+    pub s: usize,
+    pub rows: usize,
+    pub cols: usize,
+    /// Substep (s), gravity by component (m/s²), damping coefficient (N·s/m).
+    pub h: f32,
+    pub gravity: [f32; 3],
+    pub damping: f32,
+    /// Stiffness and damping per spring class (`None`: the class contributes nothing).
+    pub params: [Option<(f32, f32)>; 6],
+    /// Row `s`'s rest lengths per class (whole chunks of 16 lanes; empty for a class the row
+    /// does not have).
+    pub rest: [&'a [f32]; 6],
+    /// Row `s`'s masses and inverse masses (`cols` each).
+    pub mass: &'a [f32],
+    pub inv_mass: &'a [f32],
+    /// Rows `s`, `s + 1`, `s + 2` of the old state (x, y, z, vx, vy, vz; row `s` in place of
+    /// a row the grid does not have), each component readable for whole chunks of 16 lanes
+    /// and two lanes more.
+    pub state: [[&'a [f32]; 6]; 3],
+}
+
+/// The force rings of a band, by class, ring slot and component (see `grid_kernel::Band`).
+pub(crate) type ForceRing = [[[Vec<f32>; 3]; 3]; 6];
+
+/// Whether [`fused_row`] runs for `kernel` on this CPU: the AVX-512 kernel.
+pub(crate) fn fused_available(kernel: Kernel) -> bool {
+    cfg!(target_arch = "x86_64") && kernel == Kernel::Avx512 && Kernel::Avx512.is_available()
+}
+
+/// One row of the explicit grid fast path with all six spring classes per chunk of 16
+/// particles (AVX-512): each chunk computes its springs, keeps the row's own terms in
+/// registers (the shifted ones by lane rotation from the previous chunk), stores only the
+/// forces later rows read (warp, both diagonals, vertical bend) into the ring, and integrates
+/// at once, with the reference's operations in its order (the same bits as
+/// `grid_kernel::particle_row` after `grid_kernel::springs`). With `out` `None` (a band's
+/// halo rows) only the ring is written. Returns whether a spring of the row had zero length.
+///
+/// # Panics
+/// Without AVX-512 ([`fused_available`]), or when a row is shorter than documented in
+/// [`FusedRow`].
+pub(crate) fn fused_row<const S: u8>(
+    row: &FusedRow<'_>,
+    force: &mut ForceRing,
+    out: Option<&mut [&mut [f32]; 6]>,
+) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        assert!(Kernel::Avx512.is_available(), "the fused row needs AVX-512");
+        // SAFETY: the CPU has AVX-512 F (checked on the line above).
+        unsafe { fused_row_avx512::<S>(row, force, out) }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let _ = (row, force, out);
+        panic!("the fused row needs AVX-512")
+    }
+}
+
+/// Lanes per chunk of [`fused_row`].
+#[cfg(target_arch = "x86_64")]
+const FUSED: usize = 16;
+
+/// [`fused_row`] on AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+#[allow(clippy::too_many_lines)]
+fn fused_row_avx512<const S: u8>(
+    row: &FusedRow<'_>,
+    force: &mut ForceRing,
+    mut out: Option<&mut [&mut [f32]; 6]>,
+) -> bool {
+    use grid_kernel::{ANTI, BENDH, BENDV, DIAG, PAD, WARP, WEFT};
+    use std::arch::x86_64::{
+        __m512, __mmask16, _CMP_LE_OQ, _mm512_add_ps, _mm512_alignr_epi32, _mm512_castps_si512,
+        _mm512_castsi512_ps, _mm512_cmp_ps_mask, _mm512_div_ps, _mm512_loadu_ps,
+        _mm512_mask_blend_ps, _mm512_mask_storeu_ps, _mm512_maskz_loadu_ps, _mm512_mul_ps,
+        _mm512_set1_ps, _mm512_setzero_ps, _mm512_sqrt_ps, _mm512_storeu_ps, _mm512_sub_ps,
+    };
+    align_frame();
+    let FusedRow {
+        s,
+        rows,
+        cols,
+        h,
+        gravity,
+        damping,
+        params,
+        rest,
+        mass,
+        inv_mass,
+        state,
+    } = *row;
+    let full = cols.next_multiple_of(FUSED);
+    let has1 = s + 1 < rows;
+    let has2 = s + 2 < rows;
+    // Which classes row s has, and which terms come from the rows above.
+    let on = |class: usize| params[class].is_some();
+    let own = [
+        on(WARP) && has1,
+        on(WEFT),
+        on(DIAG) && has1,
+        on(ANTI) && has1,
+        on(BENDV) && has2,
+        on(BENDH),
+    ];
+    let up_warp = on(WARP) && s >= 1;
+    let up_diag = on(DIAG) && s >= 1;
+    let up_anti = on(ANTI) && s >= 1;
+    let up_bendv = on(BENDV) && s >= 2;
+    // Every read and write below stays inside these lengths (checked once per row).
+    for r in &state {
+        for c in r {
+            assert!(c.len() >= full + 2, "a state row shorter than its chunks");
+        }
+    }
+    for (class, &o) in own.iter().enumerate() {
+        assert!(
+            !o || rest[class].len() >= full,
+            "a rest row shorter than its chunks"
+        );
+    }
+    assert!(
+        mass.len() >= cols && inv_mass.len() >= cols,
+        "a mass row shorter than the row"
+    );
+    if let Some(out) = &out {
+        for c in out.iter() {
+            assert!(c.len() >= cols, "an output row shorter than the row");
+        }
+    }
+    for class in [WARP, DIAG, ANTI, BENDV] {
+        for slot in &force[class] {
+            for c in slot {
+                assert!(c.len() >= PAD + full, "a force row shorter than its chunks");
+            }
+        }
+    }
+    let slot = s % 3;
+    // The ring rows this row writes (its own slot) and reads (the rows above), per component,
+    // from their column 0 (the diagonal's from column −1, in the front padding).
+    let write = |force: &mut ForceRing, class: usize| -> [*mut f32; 3] {
+        let [x, y, z] = &mut force[class][slot];
+        [
+            x.as_mut_ptr().wrapping_add(PAD),
+            y.as_mut_ptr().wrapping_add(PAD),
+            z.as_mut_ptr().wrapping_add(PAD),
+        ]
+    };
+    let read = |force: &ForceRing, class: usize, r: usize, back: usize| -> [*const f32; 3] {
+        let [x, y, z] = &force[class][r % 3];
+        [
+            x.as_ptr().wrapping_add(PAD - back),
+            y.as_ptr().wrapping_add(PAD - back),
+            z.as_ptr().wrapping_add(PAD - back),
+        ]
+    };
+    let (w_warp, w_diag, w_anti, w_bendv) = (
+        write(force, WARP),
+        write(force, DIAG),
+        write(force, ANTI),
+        write(force, BENDV),
+    );
+    let r_warp = read(force, WARP, s.wrapping_sub(1), 0);
+    let r_diag = read(force, DIAG, s.wrapping_sub(1), 1);
+    let r_anti = read(force, ANTI, s.wrapping_sub(1), 0);
+    let r_bendv = read(force, BENDV, s.wrapping_sub(2), 0);
+    let param = |class: usize| {
+        let (k, c) = params[class].unwrap_or((0.0, 0.0));
+        (_mm512_set1_ps(k), _mm512_set1_ps(c))
+    };
+    let (p_warp, p_weft, p_diag, p_anti, p_bendv, p_bendh) = (
+        param(WARP),
+        param(WEFT),
+        param(DIAG),
+        param(ANTI),
+        param(BENDV),
+        param(BENDH),
+    );
+    let zero = _mm512_setzero_ps();
+    let minus = _mm512_set1_ps(-0.0);
+    let one = _mm512_set1_ps(1.0);
+    let (hv, half, dv) = (
+        _mm512_set1_ps(h),
+        _mm512_set1_ps(0.5 * h),
+        _mm512_set1_ps(damping),
+    );
+    let g = [
+        _mm512_set1_ps(gravity[0]),
+        _mm512_set1_ps(gravity[1]),
+        _mm512_set1_ps(gravity[2]),
+    ];
+    // Lanes `c0 ..` below `lim`.
+    let lanes = |c0: usize, lim: usize| -> __mmask16 {
+        if c0 + FUSED <= lim {
+            0xFFFF
+        } else if c0 >= lim {
+            0
+        } else {
+            (1u16 << (lim - c0)) - 1
+        }
+    };
+    let load = |v: &[f32], i: usize| -> __m512 {
+        // SAFETY: `i + 16 <= full + 2 <= v.len()` for the state rows and `<= full` for the
+        // rest rows (asserted above).
+        unsafe { _mm512_loadu_ps(v.as_ptr().add(i)) }
+    };
+    let ends = |r: &[&[f32]; 6], i: usize| -> [__m512; 6] {
+        [
+            load(r[0], i),
+            load(r[1], i),
+            load(r[2], i),
+            load(r[3], i),
+            load(r[4], i),
+            load(r[5], i),
+        ]
+    };
+    // Spring plus dashpot from ends `a` to `b`, the reference's operations in its order:
+    // the force on the first end, and the length.
+    let spring = |a: &[__m512; 6], b: &[__m512; 6], (k, c): (__m512, __m512), rest: __m512| {
+        let lx = _mm512_sub_ps(b[0], a[0]);
+        let ly = _mm512_sub_ps(b[1], a[1]);
+        let lz = _mm512_sub_ps(b[2], a[2]);
+        let len2 = _mm512_add_ps(
+            _mm512_add_ps(_mm512_mul_ps(lx, lx), _mm512_mul_ps(ly, ly)),
+            _mm512_mul_ps(lz, lz),
+        );
+        let len = _mm512_sqrt_ps(len2);
+        let inv = _mm512_div_ps(one, len);
+        let (dx, dy, dz) = (
+            _mm512_mul_ps(lx, inv),
+            _mm512_mul_ps(ly, inv),
+            _mm512_mul_ps(lz, inv),
+        );
+        let (wx, wy, wz) = (
+            _mm512_sub_ps(b[3], a[3]),
+            _mm512_sub_ps(b[4], a[4]),
+            _mm512_sub_ps(b[5], a[5]),
+        );
+        let along = _mm512_add_ps(
+            _mm512_add_ps(_mm512_mul_ps(wx, dx), _mm512_mul_ps(wy, dy)),
+            _mm512_mul_ps(wz, dz),
+        );
+        let magnitude = _mm512_add_ps(
+            _mm512_mul_ps(k, _mm512_sub_ps(len, rest)),
+            _mm512_mul_ps(c, along),
+        );
+        (
+            [
+                _mm512_mul_ps(magnitude, dx),
+                _mm512_mul_ps(magnitude, dy),
+                _mm512_mul_ps(magnitude, dz),
+            ],
+            len,
+        )
+    };
+    // The live lanes whose spring has no length (`len <= 0`, false for NaN as in
+    // `grid_kernel::springs`).
+    let short = |len: __m512, live: __mmask16| _mm512_cmp_ps_mask::<_CMP_LE_OQ>(len, zero) & live;
+    // The lanes past the row's springs get the class's padding value.
+    let pad = |f: [__m512; 3], live: __mmask16, back: __m512| {
+        if live == 0xFFFF {
+            f
+        } else {
+            [
+                _mm512_mask_blend_ps(live, back, f[0]),
+                _mm512_mask_blend_ps(live, back, f[1]),
+                _mm512_mask_blend_ps(live, back, f[2]),
+            ]
+        }
+    };
+    let store = |p: [*mut f32; 3], c0: usize, f: [__m512; 3]| {
+        // SAFETY: `c0 + 16 <= full`: inside the ring rows (asserted above).
+        unsafe {
+            _mm512_storeu_ps(p[0].add(c0), f[0]);
+            _mm512_storeu_ps(p[1].add(c0), f[1]);
+            _mm512_storeu_ps(p[2].add(c0), f[2]);
+        }
+    };
+    let ring = |p: [*const f32; 3], c0: usize| -> [__m512; 3] {
+        // SAFETY: `c0 + 16 <= full`: inside the ring rows (asserted above; the diagonal's
+        // row starts one lane into the front padding).
+        unsafe {
+            [
+                _mm512_loadu_ps(p[0].add(c0)),
+                _mm512_loadu_ps(p[1].add(c0)),
+                _mm512_loadu_ps(p[2].add(c0)),
+            ]
+        }
+    };
+    let sub3 = |f: [__m512; 3], t: [__m512; 3]| {
+        [
+            _mm512_sub_ps(f[0], t[0]),
+            _mm512_sub_ps(f[1], t[1]),
+            _mm512_sub_ps(f[2], t[2]),
+        ]
+    };
+    let add3 = |f: [__m512; 3], t: [__m512; 3]| {
+        [
+            _mm512_add_ps(f[0], t[0]),
+            _mm512_add_ps(f[1], t[1]),
+            _mm512_add_ps(f[2], t[2]),
+        ]
+    };
+    // Lanes moved up by one (two): lane 0 (and 1) from the previous chunk's last lanes.
+    let shift1 = |prev: __m512, cur: __m512| {
+        _mm512_castsi512_ps(_mm512_alignr_epi32::<15>(
+            _mm512_castps_si512(cur),
+            _mm512_castps_si512(prev),
+        ))
+    };
+    let shift2 = |prev: __m512, cur: __m512| {
+        _mm512_castsi512_ps(_mm512_alignr_epi32::<14>(
+            _mm512_castps_si512(cur),
+            _mm512_castps_si512(prev),
+        ))
+    };
+    let shifted1 = |prev: [__m512; 3], cur: [__m512; 3]| -> [__m512; 3] {
+        [
+            shift1(prev[0], cur[0]),
+            shift1(prev[1], cur[1]),
+            shift1(prev[2], cur[2]),
+        ]
+    };
+    let shifted2 = |prev: [__m512; 3], cur: [__m512; 3]| -> [__m512; 3] {
+        [
+            shift2(prev[0], cur[0]),
+            shift2(prev[1], cur[1]),
+            shift2(prev[2], cur[2]),
+        ]
+    };
+    let [a, b, c] = state;
+    // The ring's front padding, which the shifted terms of column 0 (and 1) read.
+    let mut prev_weft = [zero; 3];
+    let mut prev_anti = [minus; 3];
+    let mut prev_bendh = [zero; 3];
+    let mut bad: __mmask16 = 0;
+    let mut c0 = 0;
+    while c0 < cols {
+        let (live0, live1, live2) = (
+            lanes(c0, cols),
+            lanes(c0, cols - 1),
+            lanes(c0, cols.saturating_sub(2)),
+        );
+        let a0 = ends(&a, c0);
+        let a1 = ends(&a, c0 + 1);
+        // SAFETY: masked: lanes below `cols` only.
+        let (m, w) = unsafe {
+            (
+                _mm512_maskz_loadu_ps(live0, mass.as_ptr().add(c0)),
+                _mm512_maskz_loadu_ps(live0, inv_mass.as_ptr().add(c0)),
+            )
+        };
+        // m·g − d·v, then the 12 spring terms in the reference's order (an absent term is
+        // an exact identity, so it is skipped).
+        let mut f = [
+            _mm512_sub_ps(_mm512_mul_ps(m, g[0]), _mm512_mul_ps(dv, a0[3])),
+            _mm512_sub_ps(_mm512_mul_ps(m, g[1]), _mm512_mul_ps(dv, a0[4])),
+            _mm512_sub_ps(_mm512_mul_ps(m, g[2]), _mm512_mul_ps(dv, a0[5])),
+        ];
+        if up_warp {
+            f = sub3(f, ring(r_warp, c0));
+        }
+        let b0 = if own[WARP] || own[ANTI] {
+            ends(&b, c0)
+        } else {
+            a0
+        };
+        if own[WARP] {
+            let (fw, len) = spring(&a0, &b0, p_warp, load(rest[WARP], c0));
+            bad |= short(len, live0);
+            f = add3(f, fw);
+            store(w_warp, c0, fw);
+        }
+        if own[WEFT] {
+            let (fw, len) = spring(&a0, &a1, p_weft, load(rest[WEFT], c0));
+            bad |= short(len, live1);
+            let fw = pad(fw, live1, minus);
+            f = add3(sub3(f, shifted1(prev_weft, fw)), fw);
+            prev_weft = fw;
+        }
+        if up_diag {
+            f = sub3(f, ring(r_diag, c0));
+        }
+        if up_anti {
+            f = sub3(f, ring(r_anti, c0));
+        }
+        if own[ANTI] {
+            let (fa, len) = spring(&a1, &b0, p_anti, load(rest[ANTI], c0));
+            bad |= short(len, live1);
+            let fa = pad(fa, live1, zero);
+            f = add3(f, shifted1(prev_anti, fa));
+            prev_anti = fa;
+            store(w_anti, c0, fa);
+        }
+        if own[DIAG] {
+            let b1 = ends(&b, c0 + 1);
+            let (fd, len) = spring(&a0, &b1, p_diag, load(rest[DIAG], c0));
+            bad |= short(len, live1);
+            let fd = pad(fd, live1, minus);
+            f = add3(f, fd);
+            store(w_diag, c0, fd);
+        }
+        if up_bendv {
+            f = sub3(f, ring(r_bendv, c0));
+        }
+        let mut bendh = None;
+        if own[BENDH] {
+            let a2 = ends(&a, c0 + 2);
+            let (fb, len) = spring(&a0, &a2, p_bendh, load(rest[BENDH], c0));
+            bad |= short(len, live2);
+            let fb = pad(fb, live2, minus);
+            f = sub3(f, shifted2(prev_bendh, fb));
+            prev_bendh = fb;
+            bendh = Some(fb);
+        }
+        if own[BENDV] {
+            let c2 = ends(&c, c0);
+            let (fb, len) = spring(&a0, &c2, p_bendv, load(rest[BENDV], c0));
+            bad |= short(len, live0);
+            f = add3(f, fb);
+            store(w_bendv, c0, fb);
+        }
+        if let Some(fb) = bendh {
+            f = add3(f, fb);
+        }
+        if let Some(out) = &mut out {
+            let hw = _mm512_mul_ps(hv, w);
+            for k in 0..3 {
+                let (x, v) = (a0[k], a0[3 + k]);
+                let (nx, nv) = match S {
+                    grid_kernel::FORWARD => (
+                        _mm512_add_ps(x, _mm512_mul_ps(hv, v)),
+                        _mm512_add_ps(v, _mm512_mul_ps(hw, f[k])),
+                    ),
+                    grid_kernel::SYMPLECTIC => {
+                        let nv = _mm512_add_ps(v, _mm512_mul_ps(hw, f[k]));
+                        (_mm512_add_ps(x, _mm512_mul_ps(hv, nv)), nv)
+                    }
+                    _ => {
+                        let nv = _mm512_add_ps(v, _mm512_mul_ps(hw, f[k]));
+                        (_mm512_add_ps(x, _mm512_mul_ps(half, nv)), nv)
+                    }
+                };
+                // SAFETY: masked: lanes below `cols` only, inside the output rows (asserted
+                // above).
+                unsafe {
+                    _mm512_mask_storeu_ps(out[k].as_mut_ptr().add(c0), live0, nx);
+                    _mm512_mask_storeu_ps(out[3 + k].as_mut_ptr().add(c0), live0, nv);
+                }
+            }
+        }
+        c0 += FUSED;
+    }
+    bad != 0
 }
 
 /// One vertical pass's two rows of the grid XPBD path (see `solver::grid_xpbd`), with

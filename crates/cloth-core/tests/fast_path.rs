@@ -105,7 +105,7 @@ fn scenes() -> Vec<(String, Simulation)> {
         drape.pin(0).expect("pin");
         out.push((format!("drape-13/{}", integrator.name()), drape));
 
-        let mut hanging = without_air(presets::hanging(11, integrator).expect("hanging"));
+        let mut hanging = without_air(presets::hanging(17, integrator).expect("hanging"));
         let mut config = *hanging.config();
         config.material.shear = SpringParams::new(0.0, 0.0);
         config.material.bend.damping = 0.0;
@@ -115,7 +115,7 @@ fn scenes() -> Vec<(String, Simulation)> {
         hanging
             .add_collider(Collider::sphere(Vec3::new(0.1, 1.0, 0.15), 0.2))
             .expect("sphere");
-        out.push((format!("hanging-11/{}", integrator.name()), hanging));
+        out.push((format!("hanging-17/{}", integrator.name()), hanging));
 
         // Thrown at 150 m/s through small moving balls (paths of 2.5 mm or more per substep, longer
         // than a ball is wide, so continuous collision corrects particles) and onto a tilted

@@ -24,6 +24,12 @@
 //!    ([`ccd_mask_soa`]); only candidates (and other colliders) take the per-particle code.
 //!    Chunks of particles clear of every collider skip both.
 //!
+//! With the AVX-512 kernel (and no air), steps 2 and 3 run fused, chunk by chunk of 16
+//! particles ([`simd::fused_row`]): a chunk's six classes are computed from its rows' loads,
+//! the row's own terms stay in registers (the shifted ones by lane rotation), only the
+//! classes later rows read go to the ring, and the chunk integrates at once, in the same
+//! order (the same bits). A band's two halo rows run it without integrating.
+//!
 //! With air on, each band also computes the air force of both triangles of every cell between
 //! rows `s` and `s+1` (the reference's per-triangle operations, shared with XPBD's grid
 //! path) into a ring of two cell rows, and each particle adds its (up to six) triangles'
@@ -54,12 +60,12 @@ use crate::simd::{self, Kernel};
 use crate::topology::{SpringKind, Topology};
 
 /// Spring classes of the grid, as shifted row patterns.
-pub(super) const WARP: usize = 0;
-pub(super) const WEFT: usize = 1;
-pub(super) const DIAG: usize = 2;
-pub(super) const ANTI: usize = 3;
-pub(super) const BENDV: usize = 4;
-pub(super) const BENDH: usize = 5;
+pub(crate) const WARP: usize = 0;
+pub(crate) const WEFT: usize = 1;
+pub(crate) const DIAG: usize = 2;
+pub(crate) const ANTI: usize = 3;
+pub(crate) const BENDV: usize = 4;
+pub(crate) const BENDH: usize = 5;
 
 /// Per class: (row offset of the second end, column offset of the first end, column
 /// offset of the second end, spring kind). The spring of class `k` at slot `(r, c)` joins
@@ -81,7 +87,7 @@ pub(super) const CLASSES: [(usize, usize, usize, SpringKind); 6] = [
 const LANES: usize = 32;
 
 /// Front padding of the force rows (two slots, for the `c − 2` of horizontal bend springs).
-const PAD: usize = 2;
+pub(crate) const PAD: usize = 2;
 
 /// Which explicit scheme a grid substep runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -448,6 +454,9 @@ pub(crate) struct Job<'a> {
     params: [Option<(f32, f32)>; 6],
     /// The air's coefficients when the air is on.
     air: Option<super::grid_xpbd::AirCoefficients>,
+    /// The rows run on the fused AVX-512 kernel ([`simd::fused_row`]: AVX-512 chosen and
+    /// available, no air), else on [`springs`] and [`particle_row`].
+    fused: bool,
     /// The old state.
     src: Source<'a>,
     mass: &'a [f32],
@@ -555,6 +564,7 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
     } else {
         Source::Particles(&p.position, &p.velocity)
     };
+    let air = air_active(config).then(|| super::grid_xpbd::AirCoefficients::of(config, ctx.wind));
     let job = Job {
         rows,
         cols,
@@ -567,7 +577,8 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         },
         damping: if sw.damping { config.damping } else { 0.0 },
         params,
-        air: air_active(config).then(|| super::grid_xpbd::AirCoefficients::of(config, ctx.wind)),
+        fused: air.is_none() && simd::fused_available(plan.kernel),
+        air,
         src,
         mass: &p.mass,
         inv_mass: &p.inv_mass,
@@ -761,8 +772,11 @@ pub(crate) fn band(
     }
     for s in first..r1 {
         let old = |r: usize| old_row(&band.state, in_place, cols, width, r);
-        // Springs whose first end is in row s.
+        // Springs whose first end is in row s (the fused kernel computes them with the row).
         for (class, &(dr, a_dc, b_dc, _)) in CLASSES.iter().enumerate() {
+            if job.fused {
+                break;
+            }
             let Some((k, c)) = job.params[class] else {
                 continue;
             };
@@ -827,6 +841,10 @@ pub(crate) fn band(
                 ],
             );
         }
+        if job.fused && s < r0 {
+            // A row above the band: only its springs, for the band's first rows.
+            result.degenerate |= fused_row(job, s, &old, &mut band.force, None);
+        }
         if s >= r0 {
             // The new row: straight into the row-blocked arrays, or into the band's row
             // buffers (then converted into `Vec3`s).
@@ -843,7 +861,11 @@ pub(crate) fn band(
                 }
             };
             let state = old(s);
-            particle_row(job, s, state, &band.force, &band.air, &mut out);
+            if job.fused {
+                result.degenerate |= fused_row(job, s, &old, &mut band.force, Some(&mut out));
+            } else {
+                particle_row(job, s, state, &band.force, &band.air, &mut out);
+            }
             // With the discrete contacts done on the arrays, the rows that also run continuous
             // collision get their candidates there too (old positions = the ring's row, which
             // Verlet's drift has changed: it keeps the per-particle mask).
@@ -895,6 +917,48 @@ pub(crate) fn band(
         }
     }
     result
+}
+
+/// Row `s` (its springs, and with `out` its new state) on [`simd::fused_row`].
+#[inline(always)]
+fn fused_row<'b>(
+    job: &Job<'_>,
+    s: usize,
+    old: &impl Fn(usize) -> [&'b [f32]; 6],
+    force: &mut simd::ForceRing,
+    out: Option<&mut [&mut [f32]; 6]>,
+) -> bool {
+    let (rows, cols) = (job.rows, job.cols);
+    let lo = s * cols;
+    let full = cols.next_multiple_of(LANES);
+    let mut rest: [&[f32]; 6] = [&[]; 6];
+    for (class, &(dr, _, _, _)) in CLASSES.iter().enumerate() {
+        if job.params[class].is_some() && s + dr < rows {
+            rest[class] = &job.rest[class][lo..][..full];
+        }
+    }
+    let row = simd::FusedRow {
+        s,
+        rows,
+        cols,
+        h: job.h,
+        gravity: job.gravity.to_array(),
+        damping: job.damping,
+        params: job.params,
+        rest,
+        mass: &job.mass[lo..][..cols],
+        inv_mass: &job.inv_mass[lo..][..cols],
+        state: [
+            old(s),
+            old(if s + 1 < rows { s + 1 } else { s }),
+            old(if s + 2 < rows { s + 2 } else { s }),
+        ],
+    };
+    match job.scheme {
+        Scheme::Forward => simd::fused_row::<FORWARD>(&row, force, out),
+        Scheme::Symplectic => simd::fused_row::<SYMPLECTIC>(&row, force, out),
+        Scheme::Verlet => simd::fused_row::<VERLET>(&row, force, out),
+    }
 }
 
 /// Distance to the contact surface below which a particle always goes through the exact
@@ -1740,9 +1804,9 @@ fn integrate_component(
     }
 }
 
-const FORWARD: u8 = 0;
-const SYMPLECTIC: u8 = 1;
-const VERLET: u8 = 2;
+pub(crate) const FORWARD: u8 = 0;
+pub(crate) const SYMPLECTIC: u8 = 1;
+pub(crate) const VERLET: u8 = 2;
 
 /// The arguments of [`integrate_component`] past the scheme: h, g, d, mass, 1/m, x, v, the
 /// 12 spring terms and the 6 air terms.
