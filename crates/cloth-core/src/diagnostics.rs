@@ -219,8 +219,14 @@ pub(crate) fn measure(
             let range = start + chunk * len..start + ((chunk + 1) * len).min(count);
             let (springs, k) = (&all[range.clone()], stiffness(kind));
             let lanes = match measured {
-                true => crate::simd::length_lanes(kernel, &lengths[range], springs, k, limit),
-                false => crate::simd::spring_lanes(kernel, &p.position, springs, k, limit),
+                true => {
+                    let rest = &topology.rest_lengths()[range.clone()];
+                    crate::simd::length_lanes(kernel, &lengths[range], springs, rest, k, limit)
+                }
+                false => {
+                    let rest = &topology.rest_lengths()[range];
+                    crate::simd::spring_lanes(kernel, &p.position, springs, rest, k, limit)
+                }
             };
             part.bad = lanes.bad.map(|j| chunk * len + j);
             part.energy[0] = lanes.energy.into_iter().sum();
@@ -362,11 +368,13 @@ pub(crate) struct SpringLanes {
 pub(crate) fn spring_lanes(
     position: &[Vec3],
     springs: &[crate::topology::Spring],
+    rest: &[f32],
     k: f64,
     limit: f32,
 ) -> SpringLanes {
     lanes_of(
         springs,
+        rest,
         k,
         limit,
         |_, group| {
@@ -389,12 +397,14 @@ pub(crate) fn spring_lanes(
 pub(crate) fn length_lanes(
     lengths: &[f32],
     springs: &[crate::topology::Spring],
+    rest: &[f32],
     k: f64,
     limit: f32,
 ) -> SpringLanes {
     let lengths = &lengths[..springs.len()];
     lanes_of(
         springs,
+        rest,
         k,
         limit,
         |g, _| {
@@ -411,6 +421,7 @@ pub(crate) fn length_lanes(
 #[inline(always)]
 fn lanes_of(
     springs: &[crate::topology::Spring],
+    rest: &[f32],
     k: f64,
     limit: f32,
     group: impl Fn(usize, &[crate::topology::Spring; SPRING_LANES]) -> [f32; SPRING_LANES],
@@ -434,13 +445,13 @@ fn lanes_of(
             .enumerate()
             .position(|(j, s)| one(from + j, s) > limit * s.rest_length)
     };
+    // The rest lengths from their own array: gathered from the springs (a vector gather),
+    // they took most of this pass's time on the peer scene.
+    let rest = &rest[..springs.len()];
     let (groups, tail) = springs.as_chunks::<L>();
     for (g, springs) in groups.iter().enumerate() {
         let length = group(g, springs);
-        let mut rest = [0.0_f32; L];
-        for (l, s) in springs.iter().enumerate() {
-            rest[l] = s.rest_length;
-        }
+        let rest: &[f32; L] = rest[g * L..].first_chunk().expect("a whole group");
         let mut over = false;
         for l in 0..L {
             add(&mut out, l, length[l], rest[l]);
@@ -830,13 +841,15 @@ mod tests {
                 continue;
             }
             for run in [&springs[..], &springs[..40], &springs[..5]] {
-                let lanes = crate::simd::spring_lanes(kernel, &position, run, k, limit);
+                let rest: Vec<f32> = run.iter().map(|s| s.rest_length).collect();
+                let lanes = crate::simd::spring_lanes(kernel, &position, run, &rest, k, limit);
                 let seq_bad = run.iter().position(|s| {
                     position[s.a as usize].distance(position[s.b as usize]) > limit * s.rest_length
                 });
                 assert_eq!(lanes.bad, seq_bad, "{kernel:?}, {} springs", run.len());
             }
-            let lanes = crate::simd::spring_lanes(kernel, &position, &springs, k, limit);
+            let rest: Vec<f32> = springs.iter().map(|s| s.rest_length).collect();
+            let lanes = crate::simd::spring_lanes(kernel, &position, &springs, &rest, k, limit);
             let sum: f64 = lanes.energy.into_iter().sum();
             assert!((sum - energy).abs() <= 1e-12 * energy, "{sum} vs {energy}");
             assert_eq!(

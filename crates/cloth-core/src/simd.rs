@@ -1118,6 +1118,7 @@ dispatched! {
     fn spring_lanes / spring_lanes_avx2 / spring_lanes_avx512(
         position: &[glam::Vec3],
         springs: &[crate::topology::Spring],
+        rest: &[f32],
         k: f64,
         limit: f32,
     ) -> crate::diagnostics::SpringLanes = crate::diagnostics::spring_lanes;
@@ -1129,6 +1130,7 @@ dispatched! {
     fn length_lanes / length_lanes_avx2 / length_lanes_avx512(
         lengths: &[f32],
         springs: &[crate::topology::Spring],
+        rest: &[f32],
         k: f64,
         limit: f32,
     ) -> crate::diagnostics::SpringLanes = crate::diagnostics::length_lanes;

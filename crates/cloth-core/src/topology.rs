@@ -105,6 +105,9 @@ pub fn vertex_normals(position: &[glam::Vec3], triangles: &[[u32; 3]], out: &mut
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Topology {
     springs: Vec<Spring>,
+    /// The springs' rest lengths as one array (`rest[j]` of `springs[j]`), for the passes
+    /// that read them alone.
+    rest: Vec<f32>,
     ranges: [Range<usize>; 4],
     triangles: Vec<[u32; 3]>,
     /// `(rows, cols)` when the springs are exactly those of a regular grid in the builder's
@@ -125,6 +128,7 @@ impl Topology {
             *range = start..springs.len();
         }
         Self {
+            rest: springs.iter().map(|s| s.rest_length).collect(),
             springs,
             ranges,
             triangles,
@@ -152,6 +156,12 @@ impl Topology {
     #[must_use]
     pub fn springs(&self) -> &[Spring] {
         &self.springs
+    }
+
+    /// The rest lengths of [`Topology::springs`], in their order, m.
+    #[must_use]
+    pub fn rest_lengths(&self) -> &[f32] {
+        &self.rest
     }
 
     /// The springs of one kind.
