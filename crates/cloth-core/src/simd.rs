@@ -257,9 +257,17 @@ pub(crate) struct FusedRow<'a> {
 /// The force rings of a band, by class, ring slot and component (see `grid_kernel::Band`).
 pub(crate) type ForceRing = [[[Vec<f32>; 3]; 3]; 6];
 
-/// Whether [`fused_row`] runs for `kernel` on this CPU: the AVX-512 kernel.
-pub(crate) fn fused_available(kernel: Kernel) -> bool {
-    cfg!(target_arch = "x86_64") && kernel == Kernel::Avx512 && Kernel::Avx512.is_available()
+/// Proof that [`fused_row`] can run: the AVX-512 kernel was chosen and this CPU has it (made
+/// only by [`Fused::detect`], so a row needs no check of its own).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Fused(());
+
+impl Fused {
+    /// The proof, when `kernel` is [`Kernel::Avx512`] and this CPU runs it.
+    pub(crate) fn detect(kernel: Kernel) -> Option<Self> {
+        (cfg!(target_arch = "x86_64") && kernel == Kernel::Avx512 && Kernel::Avx512.is_available())
+            .then_some(Self(()))
+    }
 }
 
 /// One row of the explicit grid fast path with all six spring classes per chunk of 16
@@ -271,23 +279,23 @@ pub(crate) fn fused_available(kernel: Kernel) -> bool {
 /// halo rows) only the ring is written. Returns whether a spring of the row had zero length.
 ///
 /// # Panics
-/// Without AVX-512 ([`fused_available`]), or when a row is shorter than documented in
-/// [`FusedRow`].
+/// When a row is shorter than documented in [`FusedRow`].
 pub(crate) fn fused_row<const S: u8>(
+    proof: Fused,
     row: &FusedRow<'_>,
     force: &mut ForceRing,
     out: Option<&mut [&mut [f32]; 6]>,
 ) -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        assert!(Kernel::Avx512.is_available(), "the fused row needs AVX-512");
-        // SAFETY: the CPU has AVX-512 F (checked on the line above).
+        let Fused(()) = proof;
+        // SAFETY: the CPU has AVX-512 F and VL, AVX2 and FMA (`proof`, from `Fused::detect`).
         unsafe { fused_row_avx512::<S>(row, force, out) }
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        let _ = (row, force, out);
-        panic!("the fused row needs AVX-512")
+        let _ = (proof, row, force, out);
+        unreachable!("`Fused::detect` gives no proof off x86-64")
     }
 }
 

@@ -456,7 +456,7 @@ pub(crate) struct Job<'a> {
     air: Option<super::grid_xpbd::AirCoefficients>,
     /// The rows run on the fused AVX-512 kernel ([`simd::fused_row`]: AVX-512 chosen and
     /// available, no air), else on [`springs`] and [`particle_row`].
-    fused: bool,
+    fused: Option<simd::Fused>,
     /// The old state.
     src: Source<'a>,
     mass: &'a [f32],
@@ -577,7 +577,7 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         },
         damping: if sw.damping { config.damping } else { 0.0 },
         params,
-        fused: air.is_none() && simd::fused_available(plan.kernel),
+        fused: simd::Fused::detect(plan.kernel).filter(|_| air.is_none()),
         air,
         src,
         mass: &p.mass,
@@ -774,7 +774,7 @@ pub(crate) fn band(
         let old = |r: usize| old_row(&band.state, in_place, cols, width, r);
         // Springs whose first end is in row s (the fused kernel computes them with the row).
         for (class, &(dr, a_dc, b_dc, _)) in CLASSES.iter().enumerate() {
-            if job.fused {
+            if job.fused.is_some() {
                 break;
             }
             let Some((k, c)) = job.params[class] else {
@@ -841,9 +841,16 @@ pub(crate) fn band(
                 ],
             );
         }
-        if job.fused && s < r0 {
+        if let Some(proof) = job.fused
+            && s < r0
+        {
             // A row above the band: only its springs, for the band's first rows.
-            result.degenerate |= fused_row(job, s, &old, &mut band.force, None);
+            let state = [
+                old(s),
+                old((s + 1).min(rows - 1)),
+                old((s + 2).min(rows - 1)),
+            ];
+            result.degenerate |= fused_row(proof, job, s, state, &mut band.force, None);
         }
         if s >= r0 {
             // The new row: straight into the row-blocked arrays, or into the band's row
@@ -861,8 +868,14 @@ pub(crate) fn band(
                 }
             };
             let state = old(s);
-            if job.fused {
-                result.degenerate |= fused_row(job, s, &old, &mut band.force, Some(&mut out));
+            if let Some(proof) = job.fused {
+                let state = [
+                    old(s),
+                    old((s + 1).min(rows - 1)),
+                    old((s + 2).min(rows - 1)),
+                ];
+                result.degenerate |=
+                    fused_row(proof, job, s, state, &mut band.force, Some(&mut out));
             } else {
                 particle_row(job, s, state, &band.force, &band.air, &mut out);
             }
@@ -919,12 +932,15 @@ pub(crate) fn band(
     result
 }
 
-/// Row `s` (its springs, and with `out` its new state) on [`simd::fused_row`].
+/// Row `s` (its springs, and with `out` its new state) on [`simd::fused_row`], from the old
+/// state's rows `s`, `s + 1`, `s + 2` (the last row in place of rows past it: only read for
+/// springs the row does not have, which are not used).
 #[inline(always)]
-fn fused_row<'b>(
+fn fused_row(
+    proof: simd::Fused,
     job: &Job<'_>,
     s: usize,
-    old: &impl Fn(usize) -> [&'b [f32]; 6],
+    state: [[&[f32]; 6]; 3],
     force: &mut simd::ForceRing,
     out: Option<&mut [&mut [f32]; 6]>,
 ) -> bool {
@@ -948,16 +964,12 @@ fn fused_row<'b>(
         rest,
         mass: &job.mass[lo..][..cols],
         inv_mass: &job.inv_mass[lo..][..cols],
-        state: [
-            old(s),
-            old(if s + 1 < rows { s + 1 } else { s }),
-            old(if s + 2 < rows { s + 2 } else { s }),
-        ],
+        state,
     };
     match job.scheme {
-        Scheme::Forward => simd::fused_row::<FORWARD>(&row, force, out),
-        Scheme::Symplectic => simd::fused_row::<SYMPLECTIC>(&row, force, out),
-        Scheme::Verlet => simd::fused_row::<VERLET>(&row, force, out),
+        Scheme::Forward => simd::fused_row::<FORWARD>(proof, &row, force, out),
+        Scheme::Symplectic => simd::fused_row::<SYMPLECTIC>(proof, &row, force, out),
+        Scheme::Verlet => simd::fused_row::<VERLET>(proof, &row, force, out),
     }
 }
 
@@ -1506,8 +1518,9 @@ fn mark(
 /// them): in place in the row-blocked arrays `all` when given, else the ring's copy. In place,
 /// the floats past a component's `cols` are the next component's (and, past the last row,
 /// [`ROW_SLACK`]): the spring lanes past a row's springs compute garbage there, which
-/// [`springs`] neither reports nor keeps.
-#[inline(always)]
+/// [`springs`] neither reports nor keeps. (Not inlined: inlined into the band, its slices
+/// made the band's contact passes about 60 % slower on the peer scene.)
+#[inline(never)]
 fn old_row<'b>(
     ring: &'b [[Vec<f32>; 6]; 3],
     all: Option<&'b [f32]>,
