@@ -14,10 +14,11 @@
 //! stores through `bytemuck` casts of `[f32; 8]`, so without `unsafe`), and two AVX-512
 //! kernels of XPBD's grid path with the compiled loop's arithmetic in its order (the same
 //! bits): the horizontal bend's groups of four (`xpbd_quads`) and the vertical pairs with a
-//! masked last vector (`xpbd_pairs`), and the explicit integrators' fused row (`fused_row`): a grid
-//! row's six spring classes and its integration per chunk of 16 particles in registers, the
-//! compiled path's operations in their order (the same bits; about 1.3× the peer scene's
-//! throughput of the compiled AVX-512 band on the Zen 4 host).
+//! masked last vector (`xpbd_pairs`), and the explicit integrators' fused row (`fused_row`): a
+//! grid row's six spring classes and its integration per chunk of 16 (AVX-512) or 8 (AVX2)
+//! particles in registers, one generic body over the small `Lanes` trait of vector
+//! operations, the compiled path's operations in their order (the same bits; about 1.5× the
+//! peer scene's throughput of the compiled AVX-512 band on the Zen 4 host).
 //!
 //! This is the crate's only module with `unsafe`: calling a `#[target_feature]` function,
 //! which is sound only on a CPU that has the features (every call is guarded), and the
@@ -248,33 +249,39 @@ pub(crate) struct FusedRow<'a> {
     /// Row `s`'s masses and inverse masses (`cols` each).
     pub mass: &'a [f32],
     pub inv_mass: &'a [f32],
-    /// Rows `s`, `s + 1`, `s + 2` of the old state (x, y, z, vx, vy, vz; row `s` in place of
-    /// a row the grid does not have), each component readable for whole chunks of 16 lanes
-    /// and two lanes more.
+    /// Rows `s`, `s + 1`, `s + 2` of the old state (x, y, z, vx, vy, vz; another row in place
+    /// of a row the grid does not have), each component readable for whole chunks of 16
+    /// lanes and two lanes more.
     pub state: [[&'a [f32]; 6]; 3],
 }
 
 /// The force rings of a band, by class, ring slot and component (see `grid_kernel::Band`).
 pub(crate) type ForceRing = [[[Vec<f32>; 3]; 3]; 6];
 
-/// Proof that [`fused_row`] can run: the AVX-512 kernel was chosen and this CPU has it (made
-/// only by [`Fused::detect`], so a row needs no check of its own).
+/// Proof that [`fused_row`] can run, and with which instruction set: the AVX-512 or AVX2
+/// kernel was chosen and this CPU has it (made only by [`Fused::detect`], so a row needs no
+/// check of its own).
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Fused(());
+pub(crate) struct Fused {
+    avx512: bool,
+}
 
 impl Fused {
-    /// The proof, when `kernel` is [`Kernel::Avx512`] and this CPU runs it.
+    /// The proof, when `kernel` is [`Kernel::Avx512`] or [`Kernel::Avx2`] and this CPU runs
+    /// it.
     pub(crate) fn detect(kernel: Kernel) -> Option<Self> {
-        (cfg!(target_arch = "x86_64") && kernel == Kernel::Avx512 && Kernel::Avx512.is_available())
-            .then_some(Self(()))
+        let wide = matches!(kernel, Kernel::Avx512 | Kernel::Avx2);
+        (cfg!(target_arch = "x86_64") && wide && kernel.is_available()).then_some(Self {
+            avx512: kernel == Kernel::Avx512,
+        })
     }
 }
 
-/// One row of the explicit grid fast path with all six spring classes per chunk of 16
-/// particles (AVX-512): each chunk computes its springs, keeps the row's own terms in
-/// registers (the shifted ones by lane rotation from the previous chunk), stores only the
-/// forces later rows read (warp, both diagonals, vertical bend) into the ring, and integrates
-/// at once, with the reference's operations in its order (the same bits as
+/// One row of the explicit grid fast path with all six spring classes per chunk of
+/// particles (16 with AVX-512, 8 with AVX2): each chunk computes its springs, keeps the row's
+/// own terms in registers (the shifted ones by lane rotation from the previous chunk), stores
+/// only the forces later rows read (warp, both diagonals, vertical bend) into the ring, and
+/// integrates at once, with the reference's operations in its order (the same bits as
 /// `grid_kernel::particle_row` after `grid_kernel::springs`). With `out` `None` (a band's
 /// halo rows) only the ring is written. Returns whether a spring of the row had zero length.
 ///
@@ -288,9 +295,14 @@ pub(crate) fn fused_row<const S: u8>(
 ) -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        let Fused(()) = proof;
-        // SAFETY: the CPU has AVX-512 F and VL, AVX2 and FMA (`proof`, from `Fused::detect`).
-        unsafe { fused_row_avx512::<S>(row, force, out) }
+        // SAFETY: the CPU has the features of the kernel the proof names (`Fused::detect`).
+        unsafe {
+            if proof.avx512 {
+                fused_row_avx512::<S>(row, force, out)
+            } else {
+                fused_row_avx2::<S>(row, force, out)
+            }
+        }
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
@@ -299,27 +311,292 @@ pub(crate) fn fused_row<const S: u8>(
     }
 }
 
-/// Lanes per chunk of [`fused_row`].
-#[cfg(target_arch = "x86_64")]
-const FUSED: usize = 16;
-
-/// [`fused_row`] on AVX-512.
+/// [`fused_row`] on AVX-512 (16 lanes).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-#[allow(clippy::too_many_lines)]
 fn fused_row_avx512<const S: u8>(
+    row: &FusedRow<'_>,
+    force: &mut ForceRing,
+    out: Option<&mut [&mut [f32]; 6]>,
+) -> bool {
+    align_frame();
+    // SAFETY: compiled with AVX-512 F (the lanes' operations need no more).
+    unsafe { fused_lanes::<V16, S>(row, force, out) }
+}
+
+/// [`fused_row`] on AVX2 (8 lanes).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn fused_row_avx2<const S: u8>(
+    row: &FusedRow<'_>,
+    force: &mut ForceRing,
+    out: Option<&mut [&mut [f32]; 6]>,
+) -> bool {
+    align_frame();
+    // SAFETY: compiled with AVX2 (the lanes' operations need no more).
+    unsafe { fused_lanes::<V8, S>(row, force, out) }
+}
+
+/// The vector operations [`fused_lanes`] uses, for one instruction set: IEEE operations lane
+/// by lane (the same bits as the compiled scalar code), loads and stores, masks of the first
+/// lanes of a chunk, and the lane rotations of the shifted terms.
+///
+/// # Safety
+/// Every method runs that instruction set's intrinsics: call them only from code compiled
+/// with its features, on a CPU that has them; the pointer methods read or write `N` floats
+/// (the masked ones only the mask's lanes).
+#[cfg(target_arch = "x86_64")]
+unsafe trait Lanes: Copy {
+    /// Lanes per vector.
+    const N: usize;
+    /// The first `k` lanes of a chunk.
+    type Mask: Copy;
+    unsafe fn splat(x: f32) -> Self;
+    unsafe fn load(p: *const f32) -> Self;
+    unsafe fn store(p: *mut f32, v: Self);
+    /// The mask's lanes of `p`, zero elsewhere (the others are not read).
+    unsafe fn load_masked(m: Self::Mask, p: *const f32) -> Self;
+    /// Writes the mask's lanes only.
+    unsafe fn store_masked(p: *mut f32, m: Self::Mask, v: Self);
+    unsafe fn add(a: Self, b: Self) -> Self;
+    unsafe fn sub(a: Self, b: Self) -> Self;
+    unsafe fn mul(a: Self, b: Self) -> Self;
+    unsafe fn div(a: Self, b: Self) -> Self;
+    unsafe fn sqrt(a: Self) -> Self;
+    /// The lanes `c0 ..` below `lim`.
+    unsafe fn first(c0: usize, lim: usize) -> Self::Mask;
+    /// Whether the mask holds every lane.
+    unsafe fn all(m: Self::Mask) -> bool;
+    /// `v` in the mask's lanes, `back` elsewhere.
+    unsafe fn select(m: Self::Mask, v: Self, back: Self) -> Self;
+    /// Whether some lane of the mask has `len <= 0` (false for NaN).
+    unsafe fn short(len: Self, m: Self::Mask) -> bool;
+    /// `cur` moved up by one lane, lane 0 from `prev`'s last.
+    unsafe fn shift1(prev: Self, cur: Self) -> Self;
+    /// `cur` moved up by two lanes, lanes 0 and 1 from `prev`'s last two.
+    unsafe fn shift2(prev: Self, cur: Self) -> Self;
+}
+
+/// 16 lanes of AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+struct V16(std::arch::x86_64::__m512);
+
+#[cfg(target_arch = "x86_64")]
+// SAFETY: AVX-512 F intrinsics only (see the trait).
+unsafe impl Lanes for V16 {
+    const N: usize = 16;
+    type Mask = std::arch::x86_64::__mmask16;
+    #[inline(always)]
+    unsafe fn splat(x: f32) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm512_set1_ps(x) })
+    }
+    #[inline(always)]
+    unsafe fn load(p: *const f32) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm512_loadu_ps(p) })
+    }
+    #[inline(always)]
+    unsafe fn store(p: *mut f32, v: Self) {
+        unsafe { std::arch::x86_64::_mm512_storeu_ps(p, v.0) }
+    }
+    #[inline(always)]
+    unsafe fn load_masked(m: Self::Mask, p: *const f32) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm512_maskz_loadu_ps(m, p) })
+    }
+    #[inline(always)]
+    unsafe fn store_masked(p: *mut f32, m: Self::Mask, v: Self) {
+        unsafe { std::arch::x86_64::_mm512_mask_storeu_ps(p, m, v.0) }
+    }
+    #[inline(always)]
+    unsafe fn add(a: Self, b: Self) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm512_add_ps(a.0, b.0) })
+    }
+    #[inline(always)]
+    unsafe fn sub(a: Self, b: Self) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm512_sub_ps(a.0, b.0) })
+    }
+    #[inline(always)]
+    unsafe fn mul(a: Self, b: Self) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm512_mul_ps(a.0, b.0) })
+    }
+    #[inline(always)]
+    unsafe fn div(a: Self, b: Self) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm512_div_ps(a.0, b.0) })
+    }
+    #[inline(always)]
+    unsafe fn sqrt(a: Self) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm512_sqrt_ps(a.0) })
+    }
+    #[inline(always)]
+    unsafe fn first(c0: usize, lim: usize) -> Self::Mask {
+        if c0 + 16 <= lim {
+            0xFFFF
+        } else if c0 >= lim {
+            0
+        } else {
+            (1u16 << (lim - c0)) - 1
+        }
+    }
+    #[inline(always)]
+    unsafe fn all(m: Self::Mask) -> bool {
+        m == 0xFFFF
+    }
+    #[inline(always)]
+    unsafe fn select(m: Self::Mask, v: Self, back: Self) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm512_mask_blend_ps(m, back.0, v.0) })
+    }
+    #[inline(always)]
+    unsafe fn short(len: Self, m: Self::Mask) -> bool {
+        use std::arch::x86_64::{_CMP_LE_OQ, _mm512_cmp_ps_mask, _mm512_setzero_ps};
+        unsafe { _mm512_cmp_ps_mask::<_CMP_LE_OQ>(len.0, _mm512_setzero_ps()) & m != 0 }
+    }
+    #[inline(always)]
+    unsafe fn shift1(prev: Self, cur: Self) -> Self {
+        use std::arch::x86_64::{_mm512_alignr_epi32, _mm512_castps_si512, _mm512_castsi512_ps};
+        Self(unsafe {
+            _mm512_castsi512_ps(_mm512_alignr_epi32::<15>(
+                _mm512_castps_si512(cur.0),
+                _mm512_castps_si512(prev.0),
+            ))
+        })
+    }
+    #[inline(always)]
+    unsafe fn shift2(prev: Self, cur: Self) -> Self {
+        use std::arch::x86_64::{_mm512_alignr_epi32, _mm512_castps_si512, _mm512_castsi512_ps};
+        Self(unsafe {
+            _mm512_castsi512_ps(_mm512_alignr_epi32::<14>(
+                _mm512_castps_si512(cur.0),
+                _mm512_castps_si512(prev.0),
+            ))
+        })
+    }
+}
+
+/// 8 lanes of AVX2 (masks as vectors whose lanes are all ones or zero).
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+struct V8(std::arch::x86_64::__m256);
+
+#[cfg(target_arch = "x86_64")]
+// SAFETY: AVX and AVX2 intrinsics only (see the trait).
+unsafe impl Lanes for V8 {
+    const N: usize = 8;
+    type Mask = std::arch::x86_64::__m256i;
+    #[inline(always)]
+    unsafe fn splat(x: f32) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm256_set1_ps(x) })
+    }
+    #[inline(always)]
+    unsafe fn load(p: *const f32) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm256_loadu_ps(p) })
+    }
+    #[inline(always)]
+    unsafe fn store(p: *mut f32, v: Self) {
+        unsafe { std::arch::x86_64::_mm256_storeu_ps(p, v.0) }
+    }
+    #[inline(always)]
+    unsafe fn load_masked(m: Self::Mask, p: *const f32) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm256_maskload_ps(p, m) })
+    }
+    #[inline(always)]
+    unsafe fn store_masked(p: *mut f32, m: Self::Mask, v: Self) {
+        unsafe { std::arch::x86_64::_mm256_maskstore_ps(p, m, v.0) }
+    }
+    #[inline(always)]
+    unsafe fn add(a: Self, b: Self) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm256_add_ps(a.0, b.0) })
+    }
+    #[inline(always)]
+    unsafe fn sub(a: Self, b: Self) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm256_sub_ps(a.0, b.0) })
+    }
+    #[inline(always)]
+    unsafe fn mul(a: Self, b: Self) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm256_mul_ps(a.0, b.0) })
+    }
+    #[inline(always)]
+    unsafe fn div(a: Self, b: Self) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm256_div_ps(a.0, b.0) })
+    }
+    #[inline(always)]
+    unsafe fn sqrt(a: Self) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm256_sqrt_ps(a.0) })
+    }
+    #[inline(always)]
+    unsafe fn first(c0: usize, lim: usize) -> Self::Mask {
+        use std::arch::x86_64::{_mm256_cmpgt_epi32, _mm256_set1_epi32, _mm256_setr_epi32};
+        // Lane j is live when j < lim − c0 (clamped to 0 ..= 8).
+        let live = lim.saturating_sub(c0).min(8) as i32;
+        unsafe {
+            _mm256_cmpgt_epi32(
+                _mm256_set1_epi32(live),
+                _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
+            )
+        }
+    }
+    #[inline(always)]
+    unsafe fn all(m: Self::Mask) -> bool {
+        unsafe { std::arch::x86_64::_mm256_movemask_epi8(m) == -1 }
+    }
+    #[inline(always)]
+    unsafe fn select(m: Self::Mask, v: Self, back: Self) -> Self {
+        use std::arch::x86_64::{_mm256_blendv_ps, _mm256_castsi256_ps};
+        Self(unsafe { _mm256_blendv_ps(back.0, v.0, _mm256_castsi256_ps(m)) })
+    }
+    #[inline(always)]
+    unsafe fn short(len: Self, m: Self::Mask) -> bool {
+        use std::arch::x86_64::{
+            _CMP_LE_OQ, _mm256_and_ps, _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_movemask_ps,
+            _mm256_setzero_ps,
+        };
+        unsafe {
+            let le = _mm256_cmp_ps::<_CMP_LE_OQ>(len.0, _mm256_setzero_ps());
+            _mm256_movemask_ps(_mm256_and_ps(le, _mm256_castsi256_ps(m))) != 0
+        }
+    }
+    #[inline(always)]
+    unsafe fn shift1(prev: Self, cur: Self) -> Self {
+        use std::arch::x86_64::{
+            _mm256_alignr_epi8, _mm256_castps_si256, _mm256_castsi256_ps, _mm256_permute2f128_ps,
+        };
+        // [prev's high half, cur's low half], then per 128-bit half the last float of the
+        // lower operand and three of the upper: [prev₇, cur₀, cur₁, cur₂ | cur₃ … cur₆].
+        unsafe {
+            let mid = _mm256_permute2f128_ps::<0x21>(prev.0, cur.0);
+            Self(_mm256_castsi256_ps(_mm256_alignr_epi8::<12>(
+                _mm256_castps_si256(cur.0),
+                _mm256_castps_si256(mid),
+            )))
+        }
+    }
+    #[inline(always)]
+    unsafe fn shift2(prev: Self, cur: Self) -> Self {
+        use std::arch::x86_64::{
+            _mm256_alignr_epi8, _mm256_castps_si256, _mm256_castsi256_ps, _mm256_permute2f128_ps,
+        };
+        unsafe {
+            let mid = _mm256_permute2f128_ps::<0x21>(prev.0, cur.0);
+            Self(_mm256_castsi256_ps(_mm256_alignr_epi8::<8>(
+                _mm256_castps_si256(cur.0),
+                _mm256_castps_si256(mid),
+            )))
+        }
+    }
+}
+
+/// [`fused_row`] on the lanes `V`.
+///
+/// # Safety
+/// Only from a function compiled with `V`'s instruction set (see [`Lanes`]).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+#[allow(clippy::too_many_lines)]
+unsafe fn fused_lanes<V: Lanes, const S: u8>(
     row: &FusedRow<'_>,
     force: &mut ForceRing,
     mut out: Option<&mut [&mut [f32]; 6]>,
 ) -> bool {
     use grid_kernel::{ANTI, BENDH, BENDV, DIAG, PAD, WARP, WEFT};
-    use std::arch::x86_64::{
-        __m512, __mmask16, _CMP_LE_OQ, _mm512_add_ps, _mm512_alignr_epi32, _mm512_castps_si512,
-        _mm512_castsi512_ps, _mm512_cmp_ps_mask, _mm512_div_ps, _mm512_loadu_ps,
-        _mm512_mask_blend_ps, _mm512_mask_storeu_ps, _mm512_maskz_loadu_ps, _mm512_mul_ps,
-        _mm512_set1_ps, _mm512_setzero_ps, _mm512_sqrt_ps, _mm512_storeu_ps, _mm512_sub_ps,
-    };
-    align_frame();
     let FusedRow {
         s,
         rows,
@@ -333,7 +610,8 @@ fn fused_row_avx512<const S: u8>(
         inv_mass,
         state,
     } = *row;
-    let full = cols.next_multiple_of(FUSED);
+    let n = V::N;
+    let full = cols.next_multiple_of(n);
     let has1 = s + 1 < rows;
     let has2 = s + 2 < rows;
     // Which classes row s has, and which terms come from the rows above.
@@ -407,47 +685,177 @@ fn fused_row_avx512<const S: u8>(
     let r_diag = read(force, DIAG, s.wrapping_sub(1), 1);
     let r_anti = read(force, ANTI, s.wrapping_sub(1), 0);
     let r_bendv = read(force, BENDV, s.wrapping_sub(2), 0);
-    let param = |class: usize| {
-        let (k, c) = params[class].unwrap_or((0.0, 0.0));
-        (_mm512_set1_ps(k), _mm512_set1_ps(c))
-    };
-    let (p_warp, p_weft, p_diag, p_anti, p_bendv, p_bendh) = (
-        param(WARP),
-        param(WEFT),
-        param(DIAG),
-        param(ANTI),
-        param(BENDV),
-        param(BENDH),
-    );
-    let zero = _mm512_setzero_ps();
-    let minus = _mm512_set1_ps(-0.0);
-    let one = _mm512_set1_ps(1.0);
-    let (hv, half, dv) = (
-        _mm512_set1_ps(h),
-        _mm512_set1_ps(0.5 * h),
-        _mm512_set1_ps(damping),
-    );
-    let g = [
-        _mm512_set1_ps(gravity[0]),
-        _mm512_set1_ps(gravity[1]),
-        _mm512_set1_ps(gravity[2]),
-    ];
-    // Lanes `c0 ..` below `lim`.
-    let lanes = |c0: usize, lim: usize| -> __mmask16 {
-        if c0 + FUSED <= lim {
-            0xFFFF
-        } else if c0 >= lim {
-            0
-        } else {
-            (1u16 << (lim - c0)) - 1
+    // SAFETY (of every vector operation below): this function runs compiled with `V`'s
+    // instruction set (its contract); the loads and stores stay inside the lengths asserted
+    // above (`c0 + N <= full`; state rows read up to two lanes past that).
+    unsafe {
+        let param = |class: usize| params[class].unwrap_or((0.0, 0.0));
+        let (p_warp, p_weft, p_diag, p_anti, p_bendv, p_bendh) = (
+            splat2::<V>(param(WARP)),
+            splat2::<V>(param(WEFT)),
+            splat2::<V>(param(DIAG)),
+            splat2::<V>(param(ANTI)),
+            splat2::<V>(param(BENDV)),
+            splat2::<V>(param(BENDH)),
+        );
+        let zero = V::splat(0.0);
+        let minus = V::splat(-0.0);
+        let one = V::splat(1.0);
+        let (hv, half, dv) = (V::splat(h), V::splat(0.5 * h), V::splat(damping));
+        let g = [
+            V::splat(gravity[0]),
+            V::splat(gravity[1]),
+            V::splat(gravity[2]),
+        ];
+        let [a, b, c] = state;
+        // The ring's front padding, which the shifted terms of column 0 (and 1) read.
+        let mut prev_weft = [zero; 3];
+        let mut prev_anti = [minus; 3];
+        let mut prev_bendh = [zero; 3];
+        let mut bad = false;
+        let mut c0 = 0;
+        while c0 < cols {
+            let (live0, live1, live2) = (
+                V::first(c0, cols),
+                V::first(c0, cols - 1),
+                V::first(c0, cols.saturating_sub(2)),
+            );
+            let a0 = ends::<V>(&a, c0);
+            let a1 = ends::<V>(&a, c0 + 1);
+            // Masked: lanes below `cols` only.
+            let m = V::load_masked(live0, mass.as_ptr().add(c0));
+            let w = V::load_masked(live0, inv_mass.as_ptr().add(c0));
+            // m·g − d·v, then the 12 spring terms in the reference's order (an absent term is
+            // an exact identity, so it is skipped).
+            let mut f = [
+                V::sub(V::mul(m, g[0]), V::mul(dv, a0[3])),
+                V::sub(V::mul(m, g[1]), V::mul(dv, a0[4])),
+                V::sub(V::mul(m, g[2]), V::mul(dv, a0[5])),
+            ];
+            if up_warp {
+                f = sub3(f, ring::<V>(r_warp, c0));
+            }
+            let b0 = if own[WARP] || own[ANTI] {
+                ends::<V>(&b, c0)
+            } else {
+                a0
+            };
+            if own[WARP] {
+                let (fw, len) = spring(&a0, &b0, p_warp, load::<V>(rest[WARP], c0), one);
+                bad |= V::short(len, live0);
+                f = add3(f, fw);
+                store3(w_warp, c0, fw);
+            }
+            if own[WEFT] {
+                let (fw, len) = spring(&a0, &a1, p_weft, load::<V>(rest[WEFT], c0), one);
+                bad |= V::short(len, live1);
+                let fw = pad(fw, live1, minus);
+                f = add3(sub3(f, shifted1(prev_weft, fw)), fw);
+                prev_weft = fw;
+            }
+            if up_diag {
+                f = sub3(f, ring::<V>(r_diag, c0));
+            }
+            if up_anti {
+                f = sub3(f, ring::<V>(r_anti, c0));
+            }
+            if own[ANTI] {
+                let (fa, len) = spring(&a1, &b0, p_anti, load::<V>(rest[ANTI], c0), one);
+                bad |= V::short(len, live1);
+                let fa = pad(fa, live1, zero);
+                f = add3(f, shifted1(prev_anti, fa));
+                prev_anti = fa;
+                store3(w_anti, c0, fa);
+            }
+            if own[DIAG] {
+                let b1 = ends::<V>(&b, c0 + 1);
+                let (fd, len) = spring(&a0, &b1, p_diag, load::<V>(rest[DIAG], c0), one);
+                bad |= V::short(len, live1);
+                let fd = pad(fd, live1, minus);
+                f = add3(f, fd);
+                store3(w_diag, c0, fd);
+            }
+            if up_bendv {
+                f = sub3(f, ring::<V>(r_bendv, c0));
+            }
+            let mut bendh = None;
+            if own[BENDH] {
+                let a2 = ends::<V>(&a, c0 + 2);
+                let (fb, len) = spring(&a0, &a2, p_bendh, load::<V>(rest[BENDH], c0), one);
+                bad |= V::short(len, live2);
+                let fb = pad(fb, live2, minus);
+                f = sub3(f, shifted2(prev_bendh, fb));
+                prev_bendh = fb;
+                bendh = Some(fb);
+            }
+            if own[BENDV] {
+                let c2 = ends::<V>(&c, c0);
+                let (fb, len) = spring(&a0, &c2, p_bendv, load::<V>(rest[BENDV], c0), one);
+                bad |= V::short(len, live0);
+                f = add3(f, fb);
+                store3(w_bendv, c0, fb);
+            }
+            if let Some(fb) = bendh {
+                f = add3(f, fb);
+            }
+            if let Some(out) = &mut out {
+                let hw = V::mul(hv, w);
+                for k in 0..3 {
+                    let (x, v) = (a0[k], a0[3 + k]);
+                    let (nx, nv) = match S {
+                        grid_kernel::FORWARD => {
+                            (V::add(x, V::mul(hv, v)), V::add(v, V::mul(hw, f[k])))
+                        }
+                        grid_kernel::SYMPLECTIC => {
+                            let nv = V::add(v, V::mul(hw, f[k]));
+                            (V::add(x, V::mul(hv, nv)), nv)
+                        }
+                        _ => {
+                            let nv = V::add(v, V::mul(hw, f[k]));
+                            (V::add(x, V::mul(half, nv)), nv)
+                        }
+                    };
+                    // Masked: lanes below `cols` only, inside the output rows.
+                    V::store_masked(out[k].as_mut_ptr().add(c0), live0, nx);
+                    V::store_masked(out[3 + k].as_mut_ptr().add(c0), live0, nv);
+                }
+            }
+            c0 += n;
         }
-    };
-    let load = |v: &[f32], i: usize| -> __m512 {
-        // SAFETY: `i + 16 <= full + 2 <= v.len()` for the state rows and `<= full` for the
-        // rest rows (asserted above).
-        unsafe { _mm512_loadu_ps(v.as_ptr().add(i)) }
-    };
-    let ends = |r: &[&[f32]; 6], i: usize| -> [__m512; 6] {
+        bad
+    }
+}
+
+/// Both numbers in every lane.
+///
+/// # Safety
+/// As [`Lanes`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn splat2<V: Lanes>((k, c): (f32, f32)) -> (V, V) {
+    unsafe { (V::splat(k), V::splat(c)) }
+}
+
+/// `N` floats of `v` from `i` ([`fused_lanes`]' helpers are functions, not closures: a
+/// closure in a function without the instruction set's features would not get them, and
+/// every intrinsic in it would be a call).
+///
+/// # Safety
+/// As [`Lanes`]; `i + N <= v.len()`.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn load<V: Lanes>(v: &[f32], i: usize) -> V {
+    unsafe { V::load(v.as_ptr().add(i)) }
+}
+
+/// A chunk's ends (x, y, z, vx, vy, vz) from column `i` of a row.
+///
+/// # Safety
+/// As [`load`] for every component.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn ends<V: Lanes>(r: &[&[f32]; 6], i: usize) -> [V; 6] {
+    unsafe {
         [
             load(r[0], i),
             load(r[1], i),
@@ -456,245 +864,140 @@ fn fused_row_avx512<const S: u8>(
             load(r[4], i),
             load(r[5], i),
         ]
-    };
-    // Spring plus dashpot from ends `a` to `b`, the reference's operations in its order:
-    // the force on the first end, and the length.
-    let spring = |a: &[__m512; 6], b: &[__m512; 6], (k, c): (__m512, __m512), rest: __m512| {
-        let lx = _mm512_sub_ps(b[0], a[0]);
-        let ly = _mm512_sub_ps(b[1], a[1]);
-        let lz = _mm512_sub_ps(b[2], a[2]);
-        let len2 = _mm512_add_ps(
-            _mm512_add_ps(_mm512_mul_ps(lx, lx), _mm512_mul_ps(ly, ly)),
-            _mm512_mul_ps(lz, lz),
-        );
-        let len = _mm512_sqrt_ps(len2);
-        let inv = _mm512_div_ps(one, len);
-        let (dx, dy, dz) = (
-            _mm512_mul_ps(lx, inv),
-            _mm512_mul_ps(ly, inv),
-            _mm512_mul_ps(lz, inv),
-        );
-        let (wx, wy, wz) = (
-            _mm512_sub_ps(b[3], a[3]),
-            _mm512_sub_ps(b[4], a[4]),
-            _mm512_sub_ps(b[5], a[5]),
-        );
-        let along = _mm512_add_ps(
-            _mm512_add_ps(_mm512_mul_ps(wx, dx), _mm512_mul_ps(wy, dy)),
-            _mm512_mul_ps(wz, dz),
-        );
-        let magnitude = _mm512_add_ps(
-            _mm512_mul_ps(k, _mm512_sub_ps(len, rest)),
-            _mm512_mul_ps(c, along),
-        );
+    }
+}
+
+/// Spring plus dashpot from ends `a` to `b` (stiffness and damping `k`, `c`, rest length
+/// `rest`), the reference's operations in its order: the force on the first end, and the
+/// length.
+///
+/// # Safety
+/// As [`Lanes`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn spring<V: Lanes>(a: &[V; 6], b: &[V; 6], (k, c): (V, V), rest: V, one: V) -> ([V; 3], V) {
+    unsafe {
+        let lx = V::sub(b[0], a[0]);
+        let ly = V::sub(b[1], a[1]);
+        let lz = V::sub(b[2], a[2]);
+        let len2 = V::add(V::add(V::mul(lx, lx), V::mul(ly, ly)), V::mul(lz, lz));
+        let len = V::sqrt(len2);
+        let inv = V::div(one, len);
+        let (dx, dy, dz) = (V::mul(lx, inv), V::mul(ly, inv), V::mul(lz, inv));
+        let (wx, wy, wz) = (V::sub(b[3], a[3]), V::sub(b[4], a[4]), V::sub(b[5], a[5]));
+        let along = V::add(V::add(V::mul(wx, dx), V::mul(wy, dy)), V::mul(wz, dz));
+        let magnitude = V::add(V::mul(k, V::sub(len, rest)), V::mul(c, along));
         (
             [
-                _mm512_mul_ps(magnitude, dx),
-                _mm512_mul_ps(magnitude, dy),
-                _mm512_mul_ps(magnitude, dz),
+                V::mul(magnitude, dx),
+                V::mul(magnitude, dy),
+                V::mul(magnitude, dz),
             ],
             len,
         )
-    };
-    // The live lanes whose spring has no length (`len <= 0`, false for NaN as in
-    // `grid_kernel::springs`).
-    let short = |len: __m512, live: __mmask16| _mm512_cmp_ps_mask::<_CMP_LE_OQ>(len, zero) & live;
-    // The lanes past the row's springs get the class's padding value.
-    let pad = |f: [__m512; 3], live: __mmask16, back: __m512| {
-        if live == 0xFFFF {
+    }
+}
+
+/// `f` in the live lanes, the class's padding value `back` past the row's springs.
+///
+/// # Safety
+/// As [`Lanes`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn pad<V: Lanes>(f: [V; 3], live: V::Mask, back: V) -> [V; 3] {
+    unsafe {
+        if V::all(live) {
             f
         } else {
             [
-                _mm512_mask_blend_ps(live, back, f[0]),
-                _mm512_mask_blend_ps(live, back, f[1]),
-                _mm512_mask_blend_ps(live, back, f[2]),
+                V::select(live, f[0], back),
+                V::select(live, f[1], back),
+                V::select(live, f[2], back),
             ]
         }
-    };
-    let store = |p: [*mut f32; 3], c0: usize, f: [__m512; 3]| {
-        // SAFETY: `c0 + 16 <= full`: inside the ring rows (asserted above).
-        unsafe {
-            _mm512_storeu_ps(p[0].add(c0), f[0]);
-            _mm512_storeu_ps(p[1].add(c0), f[1]);
-            _mm512_storeu_ps(p[2].add(c0), f[2]);
-        }
-    };
-    let ring = |p: [*const f32; 3], c0: usize| -> [__m512; 3] {
-        // SAFETY: `c0 + 16 <= full`: inside the ring rows (asserted above; the diagonal's
-        // row starts one lane into the front padding).
-        unsafe {
-            [
-                _mm512_loadu_ps(p[0].add(c0)),
-                _mm512_loadu_ps(p[1].add(c0)),
-                _mm512_loadu_ps(p[2].add(c0)),
-            ]
-        }
-    };
-    let sub3 = |f: [__m512; 3], t: [__m512; 3]| {
-        [
-            _mm512_sub_ps(f[0], t[0]),
-            _mm512_sub_ps(f[1], t[1]),
-            _mm512_sub_ps(f[2], t[2]),
-        ]
-    };
-    let add3 = |f: [__m512; 3], t: [__m512; 3]| {
-        [
-            _mm512_add_ps(f[0], t[0]),
-            _mm512_add_ps(f[1], t[1]),
-            _mm512_add_ps(f[2], t[2]),
-        ]
-    };
-    // Lanes moved up by one (two): lane 0 (and 1) from the previous chunk's last lanes.
-    let shift1 = |prev: __m512, cur: __m512| {
-        _mm512_castsi512_ps(_mm512_alignr_epi32::<15>(
-            _mm512_castps_si512(cur),
-            _mm512_castps_si512(prev),
-        ))
-    };
-    let shift2 = |prev: __m512, cur: __m512| {
-        _mm512_castsi512_ps(_mm512_alignr_epi32::<14>(
-            _mm512_castps_si512(cur),
-            _mm512_castps_si512(prev),
-        ))
-    };
-    let shifted1 = |prev: [__m512; 3], cur: [__m512; 3]| -> [__m512; 3] {
-        [
-            shift1(prev[0], cur[0]),
-            shift1(prev[1], cur[1]),
-            shift1(prev[2], cur[2]),
-        ]
-    };
-    let shifted2 = |prev: [__m512; 3], cur: [__m512; 3]| -> [__m512; 3] {
-        [
-            shift2(prev[0], cur[0]),
-            shift2(prev[1], cur[1]),
-            shift2(prev[2], cur[2]),
-        ]
-    };
-    let [a, b, c] = state;
-    // The ring's front padding, which the shifted terms of column 0 (and 1) read.
-    let mut prev_weft = [zero; 3];
-    let mut prev_anti = [minus; 3];
-    let mut prev_bendh = [zero; 3];
-    let mut bad: __mmask16 = 0;
-    let mut c0 = 0;
-    while c0 < cols {
-        let (live0, live1, live2) = (
-            lanes(c0, cols),
-            lanes(c0, cols - 1),
-            lanes(c0, cols.saturating_sub(2)),
-        );
-        let a0 = ends(&a, c0);
-        let a1 = ends(&a, c0 + 1);
-        // SAFETY: masked: lanes below `cols` only.
-        let (m, w) = unsafe {
-            (
-                _mm512_maskz_loadu_ps(live0, mass.as_ptr().add(c0)),
-                _mm512_maskz_loadu_ps(live0, inv_mass.as_ptr().add(c0)),
-            )
-        };
-        // m·g − d·v, then the 12 spring terms in the reference's order (an absent term is
-        // an exact identity, so it is skipped).
-        let mut f = [
-            _mm512_sub_ps(_mm512_mul_ps(m, g[0]), _mm512_mul_ps(dv, a0[3])),
-            _mm512_sub_ps(_mm512_mul_ps(m, g[1]), _mm512_mul_ps(dv, a0[4])),
-            _mm512_sub_ps(_mm512_mul_ps(m, g[2]), _mm512_mul_ps(dv, a0[5])),
-        ];
-        if up_warp {
-            f = sub3(f, ring(r_warp, c0));
-        }
-        let b0 = if own[WARP] || own[ANTI] {
-            ends(&b, c0)
-        } else {
-            a0
-        };
-        if own[WARP] {
-            let (fw, len) = spring(&a0, &b0, p_warp, load(rest[WARP], c0));
-            bad |= short(len, live0);
-            f = add3(f, fw);
-            store(w_warp, c0, fw);
-        }
-        if own[WEFT] {
-            let (fw, len) = spring(&a0, &a1, p_weft, load(rest[WEFT], c0));
-            bad |= short(len, live1);
-            let fw = pad(fw, live1, minus);
-            f = add3(sub3(f, shifted1(prev_weft, fw)), fw);
-            prev_weft = fw;
-        }
-        if up_diag {
-            f = sub3(f, ring(r_diag, c0));
-        }
-        if up_anti {
-            f = sub3(f, ring(r_anti, c0));
-        }
-        if own[ANTI] {
-            let (fa, len) = spring(&a1, &b0, p_anti, load(rest[ANTI], c0));
-            bad |= short(len, live1);
-            let fa = pad(fa, live1, zero);
-            f = add3(f, shifted1(prev_anti, fa));
-            prev_anti = fa;
-            store(w_anti, c0, fa);
-        }
-        if own[DIAG] {
-            let b1 = ends(&b, c0 + 1);
-            let (fd, len) = spring(&a0, &b1, p_diag, load(rest[DIAG], c0));
-            bad |= short(len, live1);
-            let fd = pad(fd, live1, minus);
-            f = add3(f, fd);
-            store(w_diag, c0, fd);
-        }
-        if up_bendv {
-            f = sub3(f, ring(r_bendv, c0));
-        }
-        let mut bendh = None;
-        if own[BENDH] {
-            let a2 = ends(&a, c0 + 2);
-            let (fb, len) = spring(&a0, &a2, p_bendh, load(rest[BENDH], c0));
-            bad |= short(len, live2);
-            let fb = pad(fb, live2, minus);
-            f = sub3(f, shifted2(prev_bendh, fb));
-            prev_bendh = fb;
-            bendh = Some(fb);
-        }
-        if own[BENDV] {
-            let c2 = ends(&c, c0);
-            let (fb, len) = spring(&a0, &c2, p_bendv, load(rest[BENDV], c0));
-            bad |= short(len, live0);
-            f = add3(f, fb);
-            store(w_bendv, c0, fb);
-        }
-        if let Some(fb) = bendh {
-            f = add3(f, fb);
-        }
-        if let Some(out) = &mut out {
-            let hw = _mm512_mul_ps(hv, w);
-            for k in 0..3 {
-                let (x, v) = (a0[k], a0[3 + k]);
-                let (nx, nv) = match S {
-                    grid_kernel::FORWARD => (
-                        _mm512_add_ps(x, _mm512_mul_ps(hv, v)),
-                        _mm512_add_ps(v, _mm512_mul_ps(hw, f[k])),
-                    ),
-                    grid_kernel::SYMPLECTIC => {
-                        let nv = _mm512_add_ps(v, _mm512_mul_ps(hw, f[k]));
-                        (_mm512_add_ps(x, _mm512_mul_ps(hv, nv)), nv)
-                    }
-                    _ => {
-                        let nv = _mm512_add_ps(v, _mm512_mul_ps(hw, f[k]));
-                        (_mm512_add_ps(x, _mm512_mul_ps(half, nv)), nv)
-                    }
-                };
-                // SAFETY: masked: lanes below `cols` only, inside the output rows (asserted
-                // above).
-                unsafe {
-                    _mm512_mask_storeu_ps(out[k].as_mut_ptr().add(c0), live0, nx);
-                    _mm512_mask_storeu_ps(out[3 + k].as_mut_ptr().add(c0), live0, nv);
-                }
-            }
-        }
-        c0 += FUSED;
     }
-    bad != 0
+}
+
+/// Stores a force chunk at column `c0` of three ring rows.
+///
+/// # Safety
+/// As [`Lanes`]; `N` floats from `p[k] + c0` writable.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn store3<V: Lanes>(p: [*mut f32; 3], c0: usize, f: [V; 3]) {
+    unsafe {
+        V::store(p[0].add(c0), f[0]);
+        V::store(p[1].add(c0), f[1]);
+        V::store(p[2].add(c0), f[2]);
+    }
+}
+
+/// A force chunk at column `c0` of three ring rows.
+///
+/// # Safety
+/// As [`Lanes`]; `N` floats from `p[k] + c0` readable.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn ring<V: Lanes>(p: [*const f32; 3], c0: usize) -> [V; 3] {
+    unsafe {
+        [
+            V::load(p[0].add(c0)),
+            V::load(p[1].add(c0)),
+            V::load(p[2].add(c0)),
+        ]
+    }
+}
+
+/// `f − t` by component.
+///
+/// # Safety
+/// As [`Lanes`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn sub3<V: Lanes>(f: [V; 3], t: [V; 3]) -> [V; 3] {
+    unsafe { [V::sub(f[0], t[0]), V::sub(f[1], t[1]), V::sub(f[2], t[2])] }
+}
+
+/// `f + t` by component.
+///
+/// # Safety
+/// As [`Lanes`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn add3<V: Lanes>(f: [V; 3], t: [V; 3]) -> [V; 3] {
+    unsafe { [V::add(f[0], t[0]), V::add(f[1], t[1]), V::add(f[2], t[2])] }
+}
+
+/// [`Lanes::shift1`] by component.
+///
+/// # Safety
+/// As [`Lanes`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn shifted1<V: Lanes>(prev: [V; 3], cur: [V; 3]) -> [V; 3] {
+    unsafe {
+        [
+            V::shift1(prev[0], cur[0]),
+            V::shift1(prev[1], cur[1]),
+            V::shift1(prev[2], cur[2]),
+        ]
+    }
+}
+
+/// [`Lanes::shift2`] by component.
+///
+/// # Safety
+/// As [`Lanes`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn shifted2<V: Lanes>(prev: [V; 3], cur: [V; 3]) -> [V; 3] {
+    unsafe {
+        [
+            V::shift2(prev[0], cur[0]),
+            V::shift2(prev[1], cur[1]),
+            V::shift2(prev[2], cur[2]),
+        ]
+    }
 }
 
 /// One vertical pass's two rows of the grid XPBD path (see `solver::grid_xpbd`), with

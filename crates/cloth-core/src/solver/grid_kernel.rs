@@ -24,8 +24,8 @@
 //!    ([`ccd_mask_soa`]); only candidates (and other colliders) take the per-particle code.
 //!    Chunks of particles clear of every collider skip both.
 //!
-//! With the AVX-512 kernel (and no air), steps 2 and 3 run fused, chunk by chunk of 16
-//! particles ([`simd::fused_row`]): a chunk's six classes are computed from its rows' loads,
+//! With the AVX-512 or AVX2 kernel (and no air), steps 2 and 3 run fused, chunk by chunk of
+//! 16 or 8 particles ([`simd::fused_row`]): a chunk's six classes are computed from its rows' loads,
 //! the row's own terms stay in registers (the shifted ones by lane rotation), only the
 //! classes later rows read go to the ring, and the chunk integrates at once, in the same
 //! order (the same bits). A band's two halo rows run it without integrating.
@@ -454,7 +454,7 @@ pub(crate) struct Job<'a> {
     params: [Option<(f32, f32)>; 6],
     /// The air's coefficients when the air is on.
     air: Option<super::grid_xpbd::AirCoefficients>,
-    /// The rows run on the fused AVX-512 kernel ([`simd::fused_row`]: AVX-512 chosen and
+    /// The rows run on the fused kernel ([`simd::fused_row`]: AVX-512 or AVX2 chosen and
     /// available, no air), else on [`springs`] and [`particle_row`].
     fused: Option<simd::Fused>,
     /// The old state.
