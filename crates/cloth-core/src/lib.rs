@@ -79,3 +79,18 @@ pub use topology::{Spring, SpringClass, SpringKind, Topology};
 #[doc = include_str!("../../../README.md")]
 #[cfg(doctest)]
 pub struct ReadmeDoctests;
+
+/// Seeded numbers for the unit tests.
+#[cfg(test)]
+mod test_rng {
+    /// Uniform numbers in [0, 1) from a xorshift64 generator started at `seed` (24 bits each,
+    /// exact in `f32`): the same sequence on every run.
+    pub(crate) fn uniform(mut seed: u64) -> impl FnMut() -> f32 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+}

@@ -274,13 +274,7 @@ mod tests {
     /// also checks that it skips most of the sliding paths it was made for.
     #[test]
     fn shallow_paths_are_never_corrected_by_the_march() {
-        let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        let mut uniform = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut uniform = crate::test_rng::uniform(0x2545_f491_4f6c_dd1d);
         let (mut skipped, mut sliding, mut sliding_skipped, mut corrected) = (0, 0, 0, 0);
         for case in 0..200_000 {
             let plane = case % 4 == 0;

@@ -773,10 +773,12 @@ pub(crate) fn band(
     for s in first..r1 {
         let old = |r: usize| old_row(&band.state, in_place, cols, width, r);
         // Springs whose first end is in row s (the fused kernel computes them with the row).
-        for (class, &(dr, a_dc, b_dc, _)) in CLASSES.iter().enumerate() {
-            if job.fused.is_some() {
-                break;
-            }
+        let classes = if job.fused.is_some() {
+            &[][..]
+        } else {
+            &CLASSES[..]
+        };
+        for (class, &(dr, a_dc, b_dc, _)) in classes.iter().enumerate() {
             let Some((k, c)) = job.params[class] else {
                 continue;
             };
@@ -845,12 +847,8 @@ pub(crate) fn band(
             && s < r0
         {
             // A row above the band: only its springs, for the band's first rows.
-            let state = [
-                old(s),
-                old((s + 1).min(rows - 1)),
-                old((s + 2).min(rows - 1)),
-            ];
-            result.degenerate |= fused_row(proof, job, s, state, &mut band.force, None);
+            let rows3 = (&band.state, in_place, width);
+            result.degenerate |= fused_row(proof, job, s, rows3, &mut band.force, None);
         }
         if s >= r0 {
             // The new row: straight into the row-blocked arrays, or into the band's row
@@ -869,13 +867,9 @@ pub(crate) fn band(
             };
             let state = old(s);
             if let Some(proof) = job.fused {
-                let state = [
-                    old(s),
-                    old((s + 1).min(rows - 1)),
-                    old((s + 2).min(rows - 1)),
-                ];
+                let rows3 = (&band.state, in_place, width);
                 result.degenerate |=
-                    fused_row(proof, job, s, state, &mut band.force, Some(&mut out));
+                    fused_row(proof, job, s, rows3, &mut band.force, Some(&mut out));
             } else {
                 particle_row(job, s, state, &band.force, &band.air, &mut out);
             }
@@ -932,19 +926,26 @@ pub(crate) fn band(
     result
 }
 
+/// Where [`old_row`] reads a band's old rows: the ring, the row-blocked arrays when read in
+/// place, and the width of a row's components.
+type OldRows<'a> = (&'a [[Vec<f32>; 6]; 3], Option<&'a [f32]>, usize);
+
 /// Row `s` (its springs, and with `out` its new state) on [`simd::fused_row`], from the old
-/// state's rows `s`, `s + 1`, `s + 2` (the last row in place of rows past it: only read for
-/// springs the row does not have, which are not used).
+/// state's rows `s`, `s + 1`, `s + 2` as [`old_row`] reads them from `(ring, all, width)`
+/// (the last row in place of rows past it: only read for springs the row does not have,
+/// which are not used).
 #[inline(always)]
 fn fused_row(
     proof: simd::Fused,
     job: &Job<'_>,
     s: usize,
-    state: [[&[f32]; 6]; 3],
+    (ring, all, width): OldRows<'_>,
     force: &mut simd::ForceRing,
     out: Option<&mut [&mut [f32]; 6]>,
 ) -> bool {
     let (rows, cols) = (job.rows, job.cols);
+    let old = |r: usize| old_row(ring, all, cols, width, r.min(rows - 1));
+    let state = [old(s), old(s + 1), old(s + 2)];
     let lo = s * cols;
     let full = cols.next_multiple_of(LANES);
     let mut rest: [&[f32]; 6] = [&[]; 6];
@@ -1996,6 +1997,7 @@ pub(crate) fn run(
 #[cfg(test)]
 mod tests {
     use super::{Balance, LANES, band_start, far_chunk, lane_distance, old_row, springs};
+    use crate::test_rng::uniform;
     use glam::Vec3;
 
     /// Continuous collision's chunk screen for spheres ([`far_chunk`]) only passes a chunk
@@ -2005,13 +2007,7 @@ mod tests {
     /// (seeded; tolerance: none, every passed lane must pass).
     #[test]
     fn the_far_chunk_screen_passes_only_chunks_every_lane_passes() {
-        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
-        let mut rand = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rand = uniform(0x2545_f491_4f6c_dd1d);
         let (mut passed, mut failed) = (0, 0);
         for _ in 0..20_000 {
             let r = 1e-3 * 1e4_f32.powf(rand());
