@@ -132,8 +132,8 @@ pub(crate) struct GridScratch {
     /// `(rows, cols, springs)` the scratch was prepared for, and whether the topology is a
     /// grid in the builder's order.
     key: Option<(usize, usize, usize, bool)>,
-    /// Rest length per class and slot `r * cols + c`.
-    rest: [Placed; 6],
+    /// Rest lengths per class, row by row, identical rows stored once ([`RestRows`]).
+    rest: [RestRows; 6],
     next_position: Vec<Vec3>,
     next_velocity: Vec<Vec3>,
     /// The state kept between substeps of a step (see [`Plan::persist`]), row-blocked
@@ -344,12 +344,16 @@ impl GridScratch {
         {
             return ok;
         }
+        let mut full: [Placed; 6] = Default::default();
         let ok = rows * cols == n
             && rows >= 2
             && cols >= 2
-            && load_rest(&mut self.rest, topology, rows, cols);
+            && load_rest(&mut full, topology, rows, cols);
         self.key = Some((rows, cols, springs, ok));
         if ok {
+            for (slot, (rows_of, table)) in self.rest.iter_mut().zip(&full).enumerate() {
+                rows_of.build(table, rows, cols, slot);
+            }
             let padded = cols + 2 * PAD;
             self.plus_zero.clear();
             self.plus_zero.resize(padded, 0.0);
@@ -357,6 +361,74 @@ impl GridScratch {
             self.minus_zero.resize(padded, -0.0);
         }
         ok
+    }
+}
+
+/// One class's rest lengths by row, each distinct row stored once.
+///
+/// On a flat regular grid a class's rows repeat: a row's rest lengths depend only on the
+/// coordinate differences along it and across it, and those take a handful of values with
+/// the rounding. Storing each distinct row once (compared bit by bit, so every spring reads
+/// exactly the value it had) takes the rest lengths out of the substep's memory traffic: at
+/// 512² the full tables are 6 MiB, a quarter of what a substep streams. A cloth whose rows do
+/// not repeat (a curved or irregular start) keeps the full table.
+#[derive(Debug, Default, Clone)]
+pub(crate) struct RestRows {
+    /// The distinct rows, `cols` entries each in order of first use, then `LANES` entries of
+    /// slack (the kernels read whole chunks past a row's end); or the full table.
+    table: Placed,
+    /// Where each row starts in `table`.
+    at: Vec<usize>,
+}
+
+impl RestRows {
+    /// Most distinct rows kept: past that, the full table (the search per row is linear).
+    const MAX_DISTINCT: usize = 32;
+
+    /// Builds from `full` (`rows · cols` entries, row-major, then slack), the table placed on
+    /// page slot `slot`.
+    fn build(&mut self, full: &[f32], rows: usize, cols: usize, slot: usize) {
+        let row = |s: usize| &full[s * cols..][..cols];
+        let same = |a: &[f32], b: &[f32]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
+        // Distinct rows (their first row), and each row's index among them.
+        let mut distinct: Vec<usize> = Vec::new();
+        self.at.clear();
+        for s in 0..rows {
+            let found = distinct.iter().position(|&d| same(row(d), row(s)));
+            let k = match found {
+                Some(k) => k,
+                None if distinct.len() < Self::MAX_DISTINCT => {
+                    distinct.push(s);
+                    distinct.len() - 1
+                }
+                None => {
+                    // Too many: the full table, every row where it was.
+                    self.table.reset(full.len(), slot);
+                    self.table.copy_from_slice(full);
+                    self.at.clear();
+                    self.at.extend((0..rows).map(|s| s * cols));
+                    return;
+                }
+            };
+            self.at.push(k * cols);
+        }
+        self.table.reset(distinct.len() * cols + LANES, slot);
+        for (k, &d) in distinct.iter().enumerate() {
+            self.table[k * cols..][..cols].copy_from_slice(row(d));
+        }
+    }
+
+    /// The first `len` rest lengths of row `s` (entries past the row's `cols` belong to other
+    /// rows or the slack: the kernels read them into lanes whose springs do not exist).
+    #[inline]
+    pub(crate) fn row(&self, s: usize, len: usize) -> &[f32] {
+        &self.table[self.at[s]..][..len]
+    }
+
+    /// How many rows the table holds.
+    #[cfg(test)]
+    fn stored_rows(&self, cols: usize) -> usize {
+        self.table.len() / cols
     }
 }
 
@@ -461,7 +533,7 @@ pub(crate) struct Job<'a> {
     src: Source<'a>,
     mass: &'a [f32],
     inv_mass: &'a [f32],
-    rest: &'a [Placed; 6],
+    rest: &'a [RestRows; 6],
     plus_zero: &'a [f32],
     minus_zero: &'a [f32],
     colliders: &'a [Collider],
@@ -790,7 +862,7 @@ pub(crate) fn band(
             // component's values ([`old_row`]), are not checked for a zero length, and are
             // reset to the class's padding value afterwards.
             let m = cols - a_dc.max(b_dc);
-            let rest = &job.rest[class][s * cols..][..full];
+            let rest = job.rest[class].row(s, full);
             let (a, b) = (old(s), old(s + dr));
             let [fx, fy, fz] = &mut band.force[class][s % 3];
             result.degenerate |= springs(
@@ -951,7 +1023,7 @@ fn fused_row(
     let mut rest: [&[f32]; 6] = [&[]; 6];
     for (class, &(dr, _, _, _)) in CLASSES.iter().enumerate() {
         if job.params[class].is_some() && s + dr < rows {
-            rest[class] = &job.rest[class][lo..][..full];
+            rest[class] = job.rest[class].row(s, full);
         }
     }
     let row = simd::FusedRow {
@@ -1996,9 +2068,60 @@ pub(crate) fn run(
 
 #[cfg(test)]
 mod tests {
-    use super::{Balance, LANES, band_start, far_chunk, lane_distance, old_row, springs};
+    use super::{Balance, LANES, RestRows, band_start, far_chunk, lane_distance, old_row, springs};
     use crate::test_rng::uniform;
     use glam::Vec3;
+
+    /// [`RestRows`] gives every row exactly (bit for bit) the rest lengths of the full table:
+    /// on a flat grid placed off the origin (shear diagonals' lengths √(Δx² + Δz²) from f32
+    /// coordinates, whose differences round to a few values) it stores a handful of rows; on
+    /// random lengths it keeps the full table. Tolerance: none.
+    #[test]
+    fn rest_rows_store_each_distinct_row_once_and_give_every_row_its_own() {
+        let (rows, cols) = (300, 77);
+        let (ox, oz, dx, dz) = (
+            0.036_176_89_f32,
+            0.026_585_01_f32,
+            0.003_1_f32,
+            0.001_953_125,
+        );
+        let at = |r: usize, c: usize| Vec3::new(ox + c as f32 * dx, 0.6, oz + r as f32 * dz);
+        let mut flat = vec![0.0; rows * cols + LANES];
+        for r in 0..rows - 1 {
+            for c in 0..cols - 1 {
+                flat[r * cols + c] = at(r, c).distance(at(r + 1, c + 1));
+            }
+        }
+        let mut random = uniform(7);
+        let noisy: Vec<f32> = (0..rows * cols + LANES).map(|_| random()).collect();
+        let mut table = RestRows::default();
+        for (full, most) in [(&flat, RestRows::MAX_DISTINCT), (&noisy, rows)] {
+            table.build(full, rows, cols, 3);
+            let stored = table.stored_rows(cols);
+            assert!(stored <= most, "{stored} rows stored");
+            for s in 0..rows {
+                let want = &full[s * cols..][..cols];
+                let got = table.row(s, cols);
+                assert!(
+                    want.iter()
+                        .zip(got)
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "row {s}"
+                );
+                // Whole chunks past the row's end stay readable.
+                assert_eq!(
+                    table.row(s, cols.next_multiple_of(LANES)).len(),
+                    cols.next_multiple_of(LANES)
+                );
+            }
+        }
+        table.build(&flat, rows, cols, 3);
+        assert!(
+            table.stored_rows(cols) < 10,
+            "{} rows",
+            table.stored_rows(cols)
+        );
+    }
 
     /// Continuous collision's chunk screen for spheres ([`far_chunk`]) only passes a chunk
     /// whose every particle passes the cheap per-particle test it stands for, `φ(b) ≥ |b − s|`
