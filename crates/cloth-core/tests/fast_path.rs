@@ -226,6 +226,57 @@ fn post_passes_after_the_fast_path_match_the_reference() {
     }
 }
 
+/// A cloth large enough (364², 132,496 particles, past the fast path's 2¹⁷) that its state is
+/// updated in place from a step's second substep on, each band writing its rows over the
+/// ones it has read and keeping the rows its neighbours read until the bands join: against
+/// the reference for every kernel, and across 1, 2 and 3 threads (bands whose boundaries cut
+/// through the contacts with the ball). Tolerance: none.
+#[test]
+fn a_cloth_updated_in_place_gives_the_reference_bits() {
+    let pool = |n: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .expect("pool")
+    };
+    for integrator in [Integrator::SymplecticEuler, Integrator::Verlet] {
+        let mut sim = presets::peer_ball(364).expect("peer");
+        let mut config = *sim.config();
+        config.integrator = integrator;
+        // Five of the preset's substeps per step.
+        config.dt *= 5.0 / config.substeps as f32;
+        config.substeps = 5;
+        sim.set_config(config).expect("config");
+        // The ball's top 5 mm above the cloth, with friction: contacts in the middle rows at once.
+        sim.set_collider(
+            0,
+            Collider::sphere(Vec3::new(0.0, 0.305, 0.0), 0.3)
+                .with_friction(Friction::new(0.5, 0.4)),
+        )
+        .expect("ball");
+        let reference = run(sim.clone(), Kernel::Reference, 2);
+        assert!(
+            reference.contacts.iter().all(|&c| c > 1000),
+            "contacts {:?}",
+            reference.contacts
+        );
+        for kernel in Kernel::ALL
+            .into_iter()
+            .filter(|k| *k != Kernel::Reference && k.is_available())
+        {
+            for threads in [1, 2, 3] {
+                let sim = sim.clone();
+                let fast = pool(threads).install(|| run(sim, kernel, 2));
+                assert!(
+                    fast == reference,
+                    "{}: {kernel:?} on {threads} threads differs",
+                    integrator.name()
+                );
+            }
+        }
+    }
+}
+
 #[test]
 fn one_two_and_three_threads_give_the_same_bits() {
     let pool = |n: usize| {

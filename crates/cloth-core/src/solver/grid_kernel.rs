@@ -54,6 +54,7 @@ use rayon::prelude::*;
 
 use super::SubstepCtx;
 use super::placed::Placed;
+use super::shared_rows::SharedRows;
 use crate::collide::{Collider, ccd, resolve_contacts_in};
 use crate::config::{Integrator, SimConfig};
 use crate::simd::{self, Kernel};
@@ -258,7 +259,16 @@ pub(crate) struct Band {
     start: Vec<Vec3>,
     /// When the band last started and finished, µs from its substep's start.
     time: [f32; 2],
+    /// In place ([`Dest::InPlace`]): the new state of the rows other bands read (the band's
+    /// first three and last two, see [`band`]), row-blocked like the state, by slot, and the
+    /// row in each slot; written over the state after the bands join.
+    defer: Vec<f32>,
+    deferred: [Option<usize>; DEFERRED],
 }
+
+/// Rows of a band written after the bands join when the state is updated in place: its first
+/// three and its last two.
+const DEFERRED: usize = 5;
 
 impl Band {
     fn prepare(&mut self, cols: usize) {
@@ -287,6 +297,8 @@ impl Band {
             a.clear();
             a.resize(cols, Vec3::ZERO);
         }
+        self.defer.clear();
+        self.defer.resize(DEFERRED * 6 * cols, 0.0);
         for (class, rows) in self.force.iter_mut().enumerate() {
             // Padding: −0.0 where the term is added, +0.0 where it is subtracted (see the
             // module docs); the anti-diagonal is read as `+A[c − 1]` and `−A[c]`, the other
@@ -553,8 +565,9 @@ pub(crate) struct Job<'a> {
 enum Source<'a> {
     /// The particles' positions and velocities.
     Particles(&'a [Vec3], &'a [Vec3]),
-    /// The scratch's row-blocked arrays ([`GridScratch::rows`]).
-    Rows(&'a [f32]),
+    /// The scratch's row-blocked arrays ([`GridScratch::rows`]), which the bands may be
+    /// updating in place ([`Dest::InPlace`]).
+    Rows(SharedRows<'a>),
 }
 
 /// Where a band writes its rows of the new state.
@@ -563,6 +576,9 @@ pub(crate) enum Dest<'a> {
     Particles(&'a mut [Vec3], &'a mut [Vec3]),
     /// Row-blocked arrays (the band's rows).
     Rows(&'a mut [f32]),
+    /// The old state's own row-blocked arrays, updated in place (row `s` at `6·cols·s`; every
+    /// band holds the whole array and writes only its rows, see [`band`]).
+    InPlace(SharedRows<'a>),
 }
 
 impl<'a> Dest<'a> {
@@ -577,6 +593,7 @@ impl<'a> Dest<'a> {
                 let (r0, r1) = r.split_at_mut(6 * particles);
                 (Dest::Rows(r0), Dest::Rows(r1))
             }
+            Dest::InPlace(all) => (Dest::InPlace(all), Dest::InPlace(all)),
         }
     }
 }
@@ -631,8 +648,12 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         scratch.next_velocity.resize(n, Vec3::ZERO);
     }
     let p = &*ctx.particles;
-    let src = if scratch.resident {
-        Source::Rows(&scratch.rows)
+    // A large cloth's resident state is updated in place ([`IN_PLACE_MIN`]).
+    let in_place = plan.persist && scratch.resident && n >= IN_PLACE_MIN && cols >= 2 * LANES;
+    let src = if in_place {
+        Source::Rows(SharedRows::writer(&mut scratch.rows))
+    } else if scratch.resident {
+        Source::Rows(SharedRows::reader(&scratch.rows))
     } else {
         Source::Particles(&p.position, &p.velocity)
     };
@@ -693,7 +714,9 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         band.time = [begin, clock.elapsed()].map(|t| t.as_secs_f32() * 1e6);
         result
     };
-    let dest = if plan.persist {
+    let dest = if let (true, Source::Rows(all)) = (in_place, job.src) {
+        Dest::InPlace(all)
+    } else if plan.persist {
         Dest::Rows(&mut scratch.next_rows)
     } else {
         Dest::Particles(&mut scratch.next_position, &mut scratch.next_velocity)
@@ -712,7 +735,18 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
     if result.degenerate {
         return false;
     }
-    if plan.persist {
+    if in_place {
+        // The rows the bands' neighbours read, kept aside by the bands until now.
+        let row = 6 * cols;
+        for band in &scratch.bands[..bands] {
+            for (slot, r) in band.deferred.iter().enumerate() {
+                if let Some(r) = *r {
+                    scratch.rows[row * r..][..row]
+                        .copy_from_slice(&band.defer[row * slot..][..row]);
+                }
+            }
+        }
+    } else if plan.persist {
         std::mem::swap(&mut scratch.rows, &mut scratch.next_rows);
         scratch.resident = true;
     } else {
@@ -812,8 +846,16 @@ pub(crate) fn ccd_after_fallback(ctx: &mut SubstepCtx<'_>, scratch: &GridScratch
     ctx.contacts.ccd += ccd::resolve(ctx.colliders, &scratch.next_position, ctx.particles, ctx.h);
 }
 
-/// One band of rows `r0 .. r1`: writes their new state into `out_x`, `out_v` (the band's
-/// rows only). Generic code, compiled once per instruction set by [`crate::simd`].
+/// One band of rows `r0 .. r1`: writes their new state into `dest` (the band's rows only).
+/// Generic code, compiled once per instruction set by [`crate::simd`].
+///
+/// In place ([`Dest::InPlace`], the old state's arrays shared by every band): the band reads
+/// old rows `r0 − 2 ..= r1 + 1` (and, past the end of row `r1 + 1`'s last component, fewer
+/// than `LANES + 2` floats of row `r1 + 2`), and row `s` for the last time at row `s`. So row
+/// `s`'s new state is written over it once row `s` is done, except for the rows another band
+/// reads: the band's first three (the band above reads down to `r0 + 1`, and into `r0 + 2`)
+/// and its last two (the band below recomputes their springs), which wait in
+/// [`Band::defer`] until the bands have joined ([`substep`] writes them).
 #[inline(always)]
 pub(crate) fn band(
     job: &Job<'_>,
@@ -834,6 +876,7 @@ pub(crate) fn band(
         Source::Rows(all) if !drift => Some(all),
         _ => None,
     };
+    band.deferred = [None; DEFERRED];
     // Whole chunks of springs per row, read up to two columns past them (the offsets).
     let full = cols.next_multiple_of(LANES);
     let width = full + 2;
@@ -926,6 +969,10 @@ pub(crate) fn band(
             // The new row: straight into the row-blocked arrays, or into the band's row
             // buffers (then converted into `Vec3`s).
             let (mut out, particles) = match &mut dest {
+                Dest::InPlace(_) => {
+                    let [x, y, z, vx, vy, vz] = &mut band.out;
+                    ([x, y, z, vx, vy, vz].map(Vec::as_mut_slice), None)
+                }
                 Dest::Rows(rows) => (
                     split_row(&mut rows[6 * cols * (s - r0)..][..6 * cols], cols),
                     None,
@@ -989,6 +1036,29 @@ pub(crate) fn band(
             if let Some((px, pv)) = particles {
                 write_particles(&out, s - r0, cols, px, pv);
             }
+            if let Dest::InPlace(all) = &dest {
+                let row = 6 * cols;
+                let slot = if s < r0 + 3 {
+                    Some(s - r0)
+                } else {
+                    (s + 2 >= r1).then(|| s + 5 - r1)
+                };
+                if let Some(slot) = slot {
+                    band.deferred[slot] = Some(s);
+                    for (k, o) in band.out.iter().enumerate() {
+                        band.defer[row * slot + k * cols..][..cols].copy_from_slice(o);
+                    }
+                } else {
+                    for (k, o) in band.out.iter().enumerate() {
+                        // SAFETY: this band has read row s for the last time (see above); no
+                        // other band reads it (not one of the band's first three or last two).
+                        #[allow(unsafe_code)]
+                        unsafe {
+                            all.put(row * s + k * cols, o);
+                        }
+                    }
+                }
+            }
         }
         // Row s + 3 replaces row s in the ring (needed by the springs of row s + 1).
         if in_place.is_none() && s + 3 < rows && s + 1 < r1 {
@@ -1000,7 +1070,7 @@ pub(crate) fn band(
 
 /// Where [`old_row`] reads a band's old rows: the ring, the row-blocked arrays when read in
 /// place, and the width of a row's components.
-type OldRows<'a> = (&'a [[Vec<f32>; 6]; 3], Option<&'a [f32]>, usize);
+type OldRows<'a> = (&'a [[Vec<f32>; 6]; 3], Option<SharedRows<'a>>, usize);
 
 /// Row `s` (its springs, and with `out` its new state) on [`simd::fused_row`], from the old
 /// state's rows `s`, `s + 1`, `s + 2` as [`old_row`] reads them from `(ring, all, width)`
@@ -1594,9 +1664,10 @@ fn mark(
 /// [`springs`] neither reports nor keeps. (Not inlined: inlined into the band, its slices
 /// made the band's contact passes about 60 % slower on the peer scene.)
 #[inline(never)]
+#[allow(unsafe_code)]
 fn old_row<'b>(
     ring: &'b [[Vec<f32>; 6]; 3],
-    all: Option<&'b [f32]>,
+    all: Option<SharedRows<'b>>,
     cols: usize,
     width: usize,
     r: usize,
@@ -1604,14 +1675,10 @@ fn old_row<'b>(
     match all {
         Some(all) => {
             let at = 6 * cols * r;
-            [
-                &all[at..][..width],
-                &all[at + cols..][..width],
-                &all[at + 2 * cols..][..width],
-                &all[at + 3 * cols..][..width],
-                &all[at + 4 * cols..][..width],
-                &all[at + 5 * cols..][..width],
-            ]
+            // SAFETY: the bands read a row only before it is written in place and read no
+            // row another band writes during the substep ([`band`]).
+            let get = |k: usize| unsafe { all.get(at + k * cols, width) };
+            [get(0), get(1), get(2), get(3), get(4), get(5)]
         }
         None => {
             let [x, y, z, vx, vy, vz] = &ring[r % 3];
@@ -1619,6 +1686,14 @@ fn old_row<'b>(
         }
     }
 }
+
+/// Fewest particles for which the resident state is updated in place ([`Dest::InPlace`])
+/// rather than into a second array. In place, a row's new state goes to the band's row
+/// buffers and is copied over the old row once nothing reads it any more: on a large cloth
+/// that halves the arrays a substep streams and writes into lines already in cache (peer-ball
+/// 512², 1 thread: +12 %), on a small one the copy costs more than it saves (128² and 256²:
+/// −2 %). Between the two sizes measured, 2¹⁷ particles (a 362² cloth).
+const IN_PLACE_MIN: usize = 1 << 17;
 
 /// Floats past the last row of the row-blocked state arrays, so that [`old_row`]'s components
 /// stay inside them.
@@ -1637,7 +1712,10 @@ fn load_row(job: &Job<'_>, s: usize, drift: bool, half: f32, dst: &mut [Vec<f32>
             (&position[s * cols..][..cols], &velocity[s * cols..][..cols])
         }
         Source::Rows(all) => {
-            let [px, py, pz, pvx, pvy, pvz] = row_parts(&all[6 * cols * s..][..6 * cols], cols);
+            // SAFETY: as in [`old_row`] (row `s` is loaded before it is written).
+            #[allow(unsafe_code)]
+            let row = unsafe { all.get(6 * cols * s, 6 * cols) };
+            let [px, py, pz, pvx, pvy, pvz] = row_parts(row, cols);
             // `p + ½h·v` per component, as glam computes it for `Vec3`.
             for c in 0..cols {
                 let (p, v) = ([px[c], py[c], pz[c]], [pvx[c], pvy[c], pvz[c]]);
@@ -1673,7 +1751,9 @@ fn old_positions(job: &Job<'_>, s: usize, dst: &mut [Vec3]) {
             dst[..cols].copy_from_slice(&position[s * cols..][..cols]);
         }
         Source::Rows(all) => {
-            let row = &all[6 * cols * s..][..3 * cols];
+            // SAFETY: as in [`old_row`] (row `s`'s contacts run before it is written).
+            #[allow(unsafe_code)]
+            let row = unsafe { all.get(6 * cols * s, 3 * cols) };
             let (px, rest) = row.split_at(cols);
             let (py, pz) = rest.split_at(cols);
             for c in 0..cols {
@@ -2068,9 +2148,16 @@ pub(crate) fn run(
 
 #[cfg(test)]
 mod tests {
-    use super::{Balance, LANES, RestRows, band_start, far_chunk, lane_distance, old_row, springs};
+    use super::{
+        Balance, IN_PLACE_MIN, LANES, RestRows, SharedRows, band_start, far_chunk, lane_distance,
+        old_row, springs,
+    };
     use crate::test_rng::uniform;
     use glam::Vec3;
+
+    // The integration test of the in-place update (`fast_path.rs`) runs a 364² cloth: past
+    // the threshold, with rows wide enough.
+    const _: () = assert!(364 * 364 >= IN_PLACE_MIN && 364 >= 2 * LANES);
 
     /// [`RestRows`] gives every row exactly (bit for bit) the rest lengths of the full table:
     /// on a flat grid placed off the origin (shear diagonals' lengths √(Δx² + Δz²) from f32
@@ -2197,7 +2284,7 @@ mod tests {
         }
         let ring = Default::default();
         let weft = |all: &[f32]| {
-            let a = old_row(&ring, Some(all), cols, width, 0);
+            let a = old_row(&ring, Some(SharedRows::reader(all)), cols, width, 0);
             let ends = |dc: usize| a.map(|comp| &comp[dc..][..full]);
             let (mut fx, mut fy, mut fz) = (vec![0.0; full], vec![0.0; full], vec![0.0; full]);
             let rest = vec![0.1; full];

@@ -11,6 +11,7 @@ pub(crate) mod grid_kernel;
 pub(crate) mod grid_xpbd;
 mod implicit;
 pub(crate) mod placed;
+pub(crate) mod shared_rows;
 mod xpbd;
 
 use glam::Vec3;
