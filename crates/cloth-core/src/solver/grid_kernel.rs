@@ -260,14 +260,14 @@ pub(crate) struct Band {
     /// When the band last started and finished, µs from its substep's start.
     time: [f32; 2],
     /// In place ([`Dest::InPlace`]): the new state of the rows other bands read (the band's
-    /// first three and last two, see [`band`]), row-blocked like the state, by slot, and the
+    /// first three, with a band above, and last two, with one below; see [`band`]), row-blocked like the state, by slot, and the
     /// row in each slot; written over the state after the bands join.
     defer: Vec<f32>,
     deferred: [Option<usize>; DEFERRED],
 }
 
-/// Rows of a band written after the bands join when the state is updated in place: its first
-/// three and its last two.
+/// Most rows of a band written after the bands join when the state is updated in place: its
+/// first three and its last two.
 const DEFERRED: usize = 5;
 
 impl Band {
@@ -853,9 +853,10 @@ pub(crate) fn ccd_after_fallback(ctx: &mut SubstepCtx<'_>, scratch: &GridScratch
 /// old rows `r0 − 2 ..= r1 + 1` (and, past the end of row `r1 + 1`'s last component, fewer
 /// than `LANES + 2` floats of row `r1 + 2`), and row `s` for the last time at row `s`. So row
 /// `s`'s new state is written over it once row `s` is done, except for the rows another band
-/// reads: the band's first three (the band above reads down to `r0 + 1`, and into `r0 + 2`)
-/// and its last two (the band below recomputes their springs), which wait in
-/// [`Band::defer`] until the bands have joined ([`substep`] writes them).
+/// reads: the band's first three when a band runs above it (that band reads down to `r0 + 1`,
+/// and into `r0 + 2`) and its last two when one runs below (that band recomputes their
+/// springs), which wait in [`Band::defer`] until the bands have joined ([`substep`] writes
+/// them).
 #[inline(always)]
 pub(crate) fn band(
     job: &Job<'_>,
@@ -1038,10 +1039,11 @@ pub(crate) fn band(
             }
             if let Dest::InPlace(all) = &dest {
                 let row = 6 * cols;
-                let slot = if s < r0 + 3 {
+                // (Only where there is a band above, or below.)
+                let slot = if r0 > 0 && s < r0 + 3 {
                     Some(s - r0)
                 } else {
-                    (s + 2 >= r1).then(|| s + 5 - r1)
+                    (r1 < rows && s + 2 >= r1).then(|| s + 5 - r1)
                 };
                 if let Some(slot) = slot {
                     band.deferred[slot] = Some(s);

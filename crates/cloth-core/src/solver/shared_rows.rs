@@ -8,7 +8,8 @@
 //! row), so the array is handed to the bands as a pointer, [`SharedRows`], and every access
 //! states which floats it touches. The protocol that keeps the accesses apart is the bands'
 //! ([`super::grid_kernel::band`]): a band writes a row only after its last read of it, and the
-//! rows its neighbours read (its first three and last two) are written after the bands join.
+//! rows its neighbours read (its first three and last two, next to another band) are written
+//! after the bands join.
 #![allow(unsafe_code)]
 
 use std::marker::PhantomData;
