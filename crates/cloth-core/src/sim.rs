@@ -21,7 +21,10 @@ use crate::topology::Topology;
 /// 3. **substeps**, each: move the colliders along their prescribed motion, then the
 ///    integrator's substep (forces → integrate → contacts, for the explicit integrators);
 ///    on a rayon pool of several threads the other threads poll for work through all the
-///    substeps instead of falling asleep between their parallel passes;
+///    substeps instead of falling asleep between their parallel passes; stages 2 and 3 run
+///    once more from the snapshot in the one case where a substep cannot be finished as
+///    the reference would (the explicit fast path, updating a large cloth in place, meets a
+///    spring of zero length);
 /// 4. **pins**: snap moved pins exactly onto their targets and stop them;
 /// 5. **diagnostics and instability check**: energies, strains, penetration, contacts; a
 ///    non-finite value, a runaway speed or a spring past the stretch limit restores the
@@ -549,11 +552,12 @@ impl Simulation {
         let mut contacts = ContactStats::default();
         let (time, config, topology, rest) =
             (self.time, &self.config, &self.topology, &self.rest_position);
-        let (colliders, solver, particles, pin_target) = (
+        let (colliders, solver, particles, pin_target, backup_colliders) = (
             &mut self.colliders,
             &mut self.solver,
             &mut self.particles,
             &self.pin_target,
+            &self.backup_colliders,
         );
         let (backup_position, backup_velocity, measure_lengths) = (
             &mut self.backup_position,
@@ -566,44 +570,56 @@ impl Simulation {
             copy_in_parallel(backup_position, &particles.position);
             copy_in_parallel(backup_velocity, &particles.velocity);
 
-            // 2. pins (stages 2 and 4 touch only pinned particles: skipped when there are
-            //    none, which one vectorised pass over the inverse masses tells)
             let any_pinned = particles.any_pinned();
-            if any_pinned {
-                for (i, target) in pin_target.iter().enumerate() {
-                    if particles.inv_mass[i] != 0.0 {
-                        continue;
+            // Stages 2 and 3 run again from the snapshot when the solver asks for it
+            // (`Solver::take_redo`: a substep that lost its old state); at most once.
+            loop {
+                // 2. pins (stages 2 and 4 touch only pinned particles: skipped when there
+                //    are none, which one vectorised pass over the inverse masses tells)
+                if any_pinned {
+                    for (i, target) in pin_target.iter().enumerate() {
+                        if particles.inv_mass[i] != 0.0 {
+                            continue;
+                        }
+                        particles.velocity[i] = match target {
+                            Some(t) => (*t - particles.position[i]) / dt,
+                            None => Vec3::ZERO,
+                        };
                     }
-                    particles.velocity[i] = match target {
-                        Some(t) => (*t - particles.position[i]) / dt,
-                        None => Vec3::ZERO,
-                    };
                 }
-            }
 
-            // 3. substeps
-            for s in 0..config.substeps {
-                let t = time + f64::from(h) * f64::from(s);
-                for c in colliders.iter_mut() {
-                    c.advance(h);
+                // 3. substeps
+                for s in 0..config.substeps {
+                    let t = time + f64::from(h) * f64::from(s);
+                    for c in colliders.iter_mut() {
+                        c.advance(h);
+                    }
+                    solver.substep(
+                        config.integrator,
+                        SubstepCtx {
+                            particles,
+                            topology,
+                            config,
+                            colliders,
+                            wind: config.air.wind_at(t),
+                            h,
+                            contacts: &mut contacts,
+                            rest,
+                            pinned: any_pinned,
+                        },
+                    );
                 }
-                solver.substep(
-                    config.integrator,
-                    SubstepCtx {
-                        particles,
-                        topology,
-                        config,
-                        colliders,
-                        wind: config.air.wind_at(t),
-                        h,
-                        contacts: &mut contacts,
-                        rest,
-                        pinned: any_pinned,
-                    },
-                );
-            }
 
-            solver.end_step(particles);
+                solver.end_step(particles);
+                if !solver.take_redo() {
+                    break;
+                }
+                copy_in_parallel(&mut particles.position, backup_position);
+                copy_in_parallel(&mut particles.velocity, backup_velocity);
+                colliders.clone_from(backup_colliders);
+                contacts = ContactStats::default();
+                solver.begin_step();
+            }
 
             // 4. pins (the targets are cleared only once the step is accepted, so that a
             //    failed step leaves them set, like the rest of the state)

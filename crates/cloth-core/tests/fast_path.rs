@@ -308,6 +308,50 @@ fn one_two_and_three_threads_give_the_same_bits() {
     assert!(traces[0] == traces[1] && traces[0] == traces[2]);
 }
 
+/// A spring that reaches zero length in the middle of a step, on a cloth large enough to be
+/// updated in place (364²): the reference skips it; the fast path has already written part
+/// of the substep's state over the old one when it meets the spring, so the step is redone
+/// from its start without the in-place update. Two neighbours pinned, one still and one
+/// driven onto it in exactly one substep (dyadic dt and substep, a difference that is exact).
+/// Tolerance: none.
+#[test]
+fn a_spring_reaching_zero_length_in_place_gives_the_reference_bits() {
+    let n = 364;
+    let mut sim = presets::peer_ball(n).expect("peer");
+    let mut config = *sim.config();
+    config.substeps = 4;
+    config.dt = 1.0 / 4096.0;
+    sim.set_config(config).expect("config");
+    let h = config.dt / config.substeps as f32;
+    let (a, b) = (200 * n + 5, 200 * n + 6);
+    // b moved to 1 µm from a first (its other springs stretched by a spacing), so that it
+    // needs only a slow drive onto a.
+    let xa = sim.particles().position[a];
+    let xb = xa + Vec3::new(1.0 / 1_048_576.0, 0.0, 0.0);
+    sim.set_position(b, xb).expect("position");
+    let tb = xb + 4.0 * (xa - xb);
+    // The precondition, as the step computes it: b's pinned velocity, one substep, on a.
+    let vb = (tb - xb) / config.dt;
+    assert_eq!(
+        bits(&[xb + vb * h]),
+        bits(&[xa]),
+        "b lands on a after one substep"
+    );
+    for threads in [1, 2] {
+        let mut sim = sim.clone();
+        sim.pin(a).expect("pin");
+        sim.pin(b).expect("pin");
+        sim.set_pin_target(b, tb).expect("target");
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        let reference = pool.install(|| run(sim.clone(), Kernel::Reference, 2));
+        let fast = pool.install(|| run(sim, Kernel::best(), 2));
+        assert!(fast == reference, "{threads} threads");
+    }
+}
+
 #[test]
 fn a_degenerate_spring_falls_back_to_the_reference() {
     // Two neighbours at the same point: the reference skips that spring; the fast path

@@ -153,6 +153,13 @@ pub(crate) struct GridScratch {
     bands: Vec<Band>,
     /// Where the bands' boundaries sit.
     balance: Balance,
+    /// A substep updating the state in place met a zero-length spring, which the reference
+    /// skips and the fast path hands back to it. Part of the old state was already
+    /// overwritten, so the substep cannot be handed back: the rest of the step does nothing
+    /// and the step is run again from its start ([`GridScratch::take_redo`]).
+    redo: bool,
+    /// The step being run again: no update in place.
+    no_in_place: bool,
 }
 
 /// The bands' boundaries, moved from substep to substep so that the bands finish together: a
@@ -344,6 +351,19 @@ pub(super) fn air_active(config: &SimConfig) -> bool {
 }
 
 impl GridScratch {
+    /// After a step: whether it must be run again from its start (see [`GridScratch::redo`]);
+    /// the next step then runs without updating the state in place.
+    pub(crate) fn take_redo(&mut self) -> bool {
+        let redo = std::mem::take(&mut self.redo);
+        self.no_in_place = redo;
+        redo
+    }
+
+    /// A step is to be run again: its remaining substeps do nothing.
+    pub(crate) fn redo_pending(&self) -> bool {
+        self.redo
+    }
+
     /// Checks (once per topology) that the springs are the builder's grid and records the
     /// rest lengths by class. Returns whether the fast path can run.
     fn prepare(&mut self, topology: &Topology, n: usize) -> bool {
@@ -649,7 +669,11 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
     }
     let p = &*ctx.particles;
     // A large cloth's resident state is updated in place ([`IN_PLACE_MIN`]).
-    let in_place = plan.persist && scratch.resident && n >= IN_PLACE_MIN && cols >= 2 * LANES;
+    let in_place = plan.persist
+        && scratch.resident
+        && !scratch.no_in_place
+        && n >= IN_PLACE_MIN
+        && cols >= 2 * LANES;
     let src = if in_place {
         Source::Rows(SharedRows::writer(&mut scratch.rows))
     } else if scratch.resident {
@@ -733,6 +757,10 @@ pub(crate) fn substep(ctx: &mut SubstepCtx<'_>, scratch: &mut GridScratch, plan:
         scratch.balance.update(|i| band[i].time);
     }
     if result.degenerate {
+        if in_place {
+            scratch.redo = true;
+            return true;
+        }
         return false;
     }
     if in_place {

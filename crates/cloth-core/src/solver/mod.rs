@@ -108,6 +108,15 @@ impl Solver {
         self.xpbd.grid.sync(particles);
     }
 
+    /// After a step (and its [`Solver::end_step`]): whether the step must be run again from
+    /// its start, which the explicit fast path asks for when a substep that updated its state
+    /// in place met a zero-length spring (the reference path, which skips such a spring,
+    /// could no longer take that substep over). The step run again does not update in place,
+    /// so it gives the reference's result.
+    pub fn take_redo(&mut self) -> bool {
+        self.grid.take_redo()
+    }
+
     /// The solver figures of the step so far.
     pub fn stats(&self) -> SolverStats {
         self.stats
@@ -117,6 +126,10 @@ impl Solver {
     /// optional strain-limiting and self-collision passes, then continuous collision against
     /// the colliders.
     pub fn substep(&mut self, integrator: Integrator, mut ctx: SubstepCtx<'_>) {
+        if self.grid.redo_pending() {
+            // The step will be run again (see `take_redo`).
+            return;
+        }
         let n = ctx.particles.len();
         if self.force.len() != n {
             self.force.resize(n, Vec3::ZERO);
