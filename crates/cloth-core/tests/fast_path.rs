@@ -21,6 +21,14 @@ struct Trace {
     ccd: Vec<u32>,
 }
 
+/// A rayon pool of `n` threads.
+fn pool(n: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .expect("pool")
+}
+
 fn bits(v: &[Vec3]) -> Vec<[u32; 3]> {
     v.iter().map(|p| p.to_array().map(f32::to_bits)).collect()
 }
@@ -233,12 +241,6 @@ fn post_passes_after_the_fast_path_match_the_reference() {
 /// through the contacts with the ball). Tolerance: none.
 #[test]
 fn a_cloth_updated_in_place_gives_the_reference_bits() {
-    let pool = |n: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .expect("pool")
-    };
     for integrator in [Integrator::SymplecticEuler, Integrator::Verlet] {
         let mut sim = presets::peer_ball(364).expect("peer");
         let mut config = *sim.config();
@@ -279,12 +281,6 @@ fn a_cloth_updated_in_place_gives_the_reference_bits() {
 
 #[test]
 fn one_two_and_three_threads_give_the_same_bits() {
-    let pool = |n: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .expect("pool")
-    };
     for (name, sim) in scenes() {
         let traces: Vec<Trace> = [1, 2, 3]
             .into_iter()
@@ -342,10 +338,7 @@ fn a_spring_reaching_zero_length_in_place_gives_the_reference_bits() {
         sim.pin(a).expect("pin");
         sim.pin(b).expect("pin");
         sim.set_pin_target(b, tb).expect("target");
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("pool");
+        let pool = pool(threads);
         let reference = pool.install(|| run(sim.clone(), Kernel::Reference, 2));
         let fast = pool.install(|| run(sim, Kernel::best(), 2));
         assert!(fast == reference, "{threads} threads");
@@ -386,10 +379,7 @@ fn air_runs_on_the_fast_path() {
 fn diagnostics_are_bit_identical_across_threads() {
     let sim = presets::drape(100, Integrator::Xpbd).expect("drape");
     let measure = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("pool");
+        let pool = pool(threads);
         let mut sim = sim.clone();
         pool.install(|| {
             (0..20)
