@@ -267,8 +267,9 @@ pub(crate) struct Band {
     /// When the band last started and finished, µs from its substep's start.
     time: [f32; 2],
     /// In place ([`Dest::InPlace`]): the new state of the rows other bands read (the band's
-    /// first three, with a band above, and last two, with one below; see [`band`]), row-blocked like the state, by slot, and the
-    /// row in each slot; written over the state after the bands join.
+    /// first three, with a band above, and last two, with one below; see [`band`]),
+    /// row-blocked like the state, by slot, and the row in each slot; written over the state
+    /// after the bands join.
     defer: Vec<f32>,
     deferred: [Option<usize>; DEFERRED],
 }
@@ -383,7 +384,7 @@ impl GridScratch {
             && load_rest(&mut full, topology, rows, cols);
         self.key = Some((rows, cols, springs, ok));
         if ok {
-            for (slot, (rows_of, table)) in self.rest.iter_mut().zip(&full).enumerate() {
+            for (slot, (rows_of, table)) in self.rest.iter_mut().zip(full).enumerate() {
                 rows_of.build(table, rows, cols, slot);
             }
             let padded = cols + 2 * PAD;
@@ -417,9 +418,9 @@ impl RestRows {
     /// Most distinct rows kept: past that, the full table (the search per row is linear).
     const MAX_DISTINCT: usize = 32;
 
-    /// Builds from `full` (`rows · cols` entries, row-major, then slack), the table placed on
-    /// page slot `slot`.
-    fn build(&mut self, full: &[f32], rows: usize, cols: usize, slot: usize) {
+    /// Builds from `full` (`rows · cols` entries, row-major, then `LANES` of slack), the table
+    /// placed on page slot `slot` (`full` itself when its rows do not repeat).
+    fn build(&mut self, full: Placed, rows: usize, cols: usize, slot: usize) {
         let row = |s: usize| &full[s * cols..][..cols];
         let same = |a: &[f32], b: &[f32]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
         // Distinct rows (their first row), and each row's index among them.
@@ -435,8 +436,7 @@ impl RestRows {
                 }
                 None => {
                     // Too many: the full table, every row where it was.
-                    self.table.reset(full.len(), slot);
-                    self.table.copy_from_slice(full);
+                    self.table = full;
                     self.at.clear();
                     self.at.extend((0..rows).map(|s| s * cols));
                     return;
@@ -460,7 +460,7 @@ impl RestRows {
     /// How many rows the table holds.
     #[cfg(test)]
     fn stored_rows(&self, cols: usize) -> usize {
-        self.table.len() / cols
+        (self.table.len() - LANES) / cols
     }
 }
 
@@ -1721,8 +1721,9 @@ fn old_row<'b>(
 /// rather than into a second array. In place, a row's new state goes to the band's row
 /// buffers and is copied over the old row once nothing reads it any more: on a large cloth
 /// that halves the arrays a substep streams and writes into lines already in cache (peer-ball
-/// 512², 1 thread: +12 %), on a small one the copy costs more than it saves (128² and 256²:
-/// −2 %). Between the two sizes measured, 2¹⁷ particles (a 362² cloth).
+/// 512², 1 thread: +6 %, 8 interleaved rounds), on a smaller one the copy costs more than it
+/// saves (256²: −1 % on 1 thread, −4 % on 2). Between the two sizes measured, 2¹⁷ particles
+/// (a 362² cloth).
 const IN_PLACE_MIN: usize = 1 << 17;
 
 /// Floats past the last row of the row-blocked state arrays, so that [`old_row`]'s components
@@ -2179,8 +2180,8 @@ pub(crate) fn run(
 #[cfg(test)]
 mod tests {
     use super::{
-        Balance, IN_PLACE_MIN, LANES, RestRows, SharedRows, band_start, far_chunk, lane_distance,
-        old_row, springs,
+        Balance, IN_PLACE_MIN, LANES, Placed, RestRows, SharedRows, band_start, far_chunk,
+        lane_distance, old_row, springs,
     };
     use crate::test_rng::uniform;
     use glam::Vec3;
@@ -2211,9 +2212,15 @@ mod tests {
         }
         let mut random = uniform(7);
         let noisy: Vec<f32> = (0..rows * cols + LANES).map(|_| random()).collect();
+        let placed = |v: &[f32]| {
+            let mut p = Placed::default();
+            p.reset(v.len(), 3);
+            p.copy_from_slice(v);
+            p
+        };
         let mut table = RestRows::default();
         for (full, most) in [(&flat, RestRows::MAX_DISTINCT), (&noisy, rows)] {
-            table.build(full, rows, cols, 3);
+            table.build(placed(full), rows, cols, 3);
             let stored = table.stored_rows(cols);
             assert!(stored <= most, "{stored} rows stored");
             for s in 0..rows {
@@ -2232,7 +2239,7 @@ mod tests {
                 );
             }
         }
-        table.build(&flat, rows, cols, 3);
+        table.build(placed(&flat), rows, cols, 3);
         assert!(
             table.stored_rows(cols) < 10,
             "{} rows",
