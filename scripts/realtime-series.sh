@@ -20,8 +20,9 @@
 # shear, a "fishnet", stretches one diagonal of each collapsed cell by 30-40 %; the converged
 # drape by at most about 10 %).
 # SCENE=file.toml runs another scene (default: the built-in drape); EXTRA=KEY=VALUE adds one
-# more --set (e.g. EXTRA='material.shear={stiffness=1e-6,damping=0.0}').
-# Usage: [KERNEL=reference] scripts/realtime-series.sh RES SECONDS THREADS SUBSTEPS:LEVELS[:chains[:SWEEPS[:NEWTON[:ROUNDS[:shear]]]]]...
+# more --set (e.g. EXTRA='material.shear={stiffness=1e-6,damping=0.0}'); LIMIT=0.02 sets the
+# structural strain limit (xpbd.structural_limit) of every setting (the last column).
+# Usage: [KERNEL=reference] [LIMIT=0.02] scripts/realtime-series.sh RES SECONDS THREADS SUBSTEPS:LEVELS[:chains[:SWEEPS[:NEWTON[:ROUNDS[:shear]]]]]...
 set -euo pipefail
 res=$1 seconds=$2 threads=$3
 shift 3
@@ -29,7 +30,7 @@ bin=${CLOTH:-target/release/cloth}
 out=$(mktemp -d)
 damping=$(python3 -c "print(repr(2e-4 * (48 / $res) ** 2))")
 "$(dirname "$0")/host-line.sh"
-printf '%-6s %-9s %-6s %-7s %-7s %-6s %-6s %12s %9s %9s %9s %9s %12s %10s %10s %11s\n' res substeps sweeps levels chains newton rounds ms/frame p50% p99% p99.9% max% penetration E_spring/J late_max% late_shear%
+printf '%-6s %-9s %-6s %-7s %-7s %-6s %-6s %12s %9s %9s %9s %9s %12s %10s %10s %11s %6s\n' res substeps sweeps levels chains newton rounds ms/frame p50% p99% p99.9% max% penetration E_spring/J late_max% late_shear% limit
 for setting in "$@"; do
   IFS=: read -r substeps levels mode sweeps newton rounds shear <<<"$setting"
   newton=${newton:-1}
@@ -39,14 +40,16 @@ for setting in "$@"; do
   # shear_chains only when asked for (binaries before it reject the key).
   with_shear=
   [ "${shear:-}" = shear ] && with_shear=,shear_chains=true
+  # structural_limit only when asked for (binaries before it reject the key).
+  with_limit=${LIMIT:+,structural_limit=$LIMIT}
   sweeps=${sweeps:-1}
   chains=false
   [ "${mode:-}" = chains ] && chains=true
   "$bin" sim "${SCENE:-drape}" --resolution "$res" --seconds "$seconds" --threads "$threads" ${KERNEL:+--kernel "$KERNEL"} \
     --set 'solver.kind="xpbd"' --set "solver.substeps=$substeps" --set "forces.damping=$damping" \
-    --set "solver.xpbd={iterations=$sweeps,hierarchy_levels=$levels,chains=$chains,chain_iterations=$newton$with_rounds$with_shear}" \
+    --set "solver.xpbd={iterations=$sweeps,hierarchy_levels=$levels,chains=$chains,chain_iterations=$newton$with_rounds$with_shear$with_limit}" \
     ${EXTRA:+--set "$EXTRA"} --report "$out/r.json" >/dev/null
-  python3 - "$out/r.json" "$res" "$substeps" "$levels" "$chains${shear:+,$shear}" "$sweeps" "$newton" "$rounds" <<'PY'
+  python3 - "$out/r.json" "$res" "$substeps" "$levels" "$chains${shear:+,$shear}" "$sweeps" "$newton" "$rounds" "${LIMIT:--}" <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1]))
 q = r["final_structural_strain"]
@@ -55,7 +58,7 @@ pen = max(f["max_penetration"] for f in late)
 late_max = max(f["max_strain"]["structural"] for f in late)
 late_shear = max(f["max_strain"]["shear"] for f in late)
 print(f'{sys.argv[2]:<6} {sys.argv[3]:<9} {sys.argv[6]:<6} {sys.argv[4]:<7} {sys.argv[5]:<7} {sys.argv[7]:<6} {sys.argv[8]:<6} {r["median_frame_ms"]:12.2f} '
-      f'{100*q["p50"]:9.3f} {100*q["p99"]:9.3f} {100*q["p99_9"]:9.3f} {100*q["max"]:9.3f} {pen:12.2e} {r["frames"][-1]["spring_energy"]:10.3f} {100*late_max:10.3f} {100*late_shear:11.3f}')
+      f'{100*q["p50"]:9.3f} {100*q["p99"]:9.3f} {100*q["p99_9"]:9.3f} {100*q["max"]:9.3f} {pen:12.2e} {r["frames"][-1]["spring_energy"]:10.3f} {100*late_max:10.3f} {100*late_shear:11.3f} {sys.argv[9]:>6}')
 PY
 done
 rm -rf "$out"

@@ -316,6 +316,16 @@ pub struct XpbdSettings {
     /// Extra length allowed by the strain limits, as a fraction of the rest distance, `>= 0`.
     /// Default 0.02.
     pub hierarchy_slack: f32,
+    /// Strain limit of the structural springs (after Provot 1995): with `Some(s)`, every warp
+    /// and weft spring is kept at most (1 + s) times its rest length, a one-sided,
+    /// inextensible limit projected after the springs (and the chain solves) in every sweep,
+    /// before the multi-resolution limits. Woven fabric stiffens sharply past a few per cent
+    /// of stretch; a spring model with a finite stiffness, solved with few substeps, can leave
+    /// a spring stretched far past that where a cell has collapsed in shear (the warp's and
+    /// the weft's solves then undo one another), and the limit holds it. `0 ..= 1` (0.02 =
+    /// 2 %); default `None` (off). [`SimConfig::strain_limit`] is the force-based
+    /// integrators' counterpart.
+    pub structural_limit: Option<f32>,
     /// Solve the warp and weft springs of a grid cloth **chain by chain** (every column's warp
     /// springs, then every row's weft springs), each chain's multipliers together by a
     /// tridiagonal solve, instead of spring by spring. A pull then crosses the whole cloth in
@@ -366,6 +376,7 @@ impl Default for XpbdSettings {
             tether_slack: 0.02,
             hierarchy_levels: 0,
             hierarchy_slack: 0.02,
+            structural_limit: None,
             chains: false,
             chain_iterations: 1,
             chain_rounds: 1,
@@ -516,6 +527,9 @@ impl SimConfig {
             ));
         }
         check::non_negative("config.xpbd.hierarchy_slack", self.xpbd.hierarchy_slack)?;
+        if let Some(limit) = self.xpbd.structural_limit {
+            check::in_range("config.xpbd.structural_limit", limit, 0.0, 1.0)?;
+        }
         if !(1..=16).contains(&self.xpbd.chain_iterations) {
             return Err(ClothError::invalid(
                 "config.xpbd.chain_iterations",

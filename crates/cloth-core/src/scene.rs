@@ -607,6 +607,8 @@ pub struct XpbdDesc {
     pub hierarchy_levels: u32,
     #[serde(default = "d_hslack")]
     pub hierarchy_slack: f32,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub structural_limit: Option<f32>,
     #[serde(default)]
     pub chains: bool,
     #[serde(default = "d_chain_iter")]
@@ -639,6 +641,7 @@ impl Default for XpbdDesc {
             tether_slack: d_slack(),
             hierarchy_levels: 0,
             hierarchy_slack: d_hslack(),
+            structural_limit: None,
             chains: false,
             chain_iterations: d_chain_iter(),
             chain_rounds: d_chain_rounds(),
@@ -1161,6 +1164,11 @@ impl Scene {
             ));
         }
         non_negative("solver.xpbd.hierarchy_slack", s.xpbd.hierarchy_slack)?;
+        if let Some(l) = s.xpbd.structural_limit
+            && !(l.is_finite() && (0.0..=1.0).contains(&l))
+        {
+            return Err(invalid("solver.xpbd.structural_limit", l, "0 ..= 1"));
+        }
         if !(1..=16).contains(&s.xpbd.chain_iterations) {
             return Err(invalid(
                 "solver.xpbd.chain_iterations",
@@ -1263,6 +1271,7 @@ impl Scene {
             tether_slack: s.xpbd.tether_slack,
             hierarchy_levels: s.xpbd.hierarchy_levels,
             hierarchy_slack: s.xpbd.hierarchy_slack,
+            structural_limit: s.xpbd.structural_limit,
             chains: s.xpbd.chains,
             chain_iterations: s.xpbd.chain_iterations,
             chain_rounds: s.xpbd.chain_rounds,
@@ -1511,6 +1520,7 @@ const KNOWN_KEYS: &[&str] = &[
     "tether_slack",
     "hierarchy_levels",
     "hierarchy_slack",
+    "structural_limit",
     "chains",
     "chain_iterations",
     "chain_rounds",
@@ -1769,6 +1779,7 @@ impl Scene {
                 tether_slack: c.xpbd.tether_slack,
                 hierarchy_levels: c.xpbd.hierarchy_levels,
                 hierarchy_slack: c.xpbd.hierarchy_slack,
+                structural_limit: c.xpbd.structural_limit,
                 chains: c.xpbd.chains,
                 chain_iterations: c.xpbd.chain_iterations,
                 chain_rounds: c.xpbd.chain_rounds,

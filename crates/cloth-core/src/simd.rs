@@ -1130,6 +1130,30 @@ dispatched! {
     ) = grid_xpbd::row;
 }
 
+dispatched! {
+    /// One-sided strain limits of pairs `a[i]`–`b[i]` of the grid XPBD path
+    /// ([`grid_xpbd::limit_pairs`]), with `kernel`.
+    fn xpbd_limit_pairs / limit_pairs_avx2 / limit_pairs_avx512(
+        a: [&mut [f32]; 3],
+        b: [&mut [f32]; 3],
+        shared: &Shared<'_>,
+        g: (usize, usize, usize),
+        m: usize,
+    ) = grid_xpbd::limit_pairs;
+}
+
+dispatched! {
+    /// One row of a horizontal pass of strain limits of the grid XPBD path
+    /// ([`grid_xpbd::limit_row`]), with `kernel`.
+    fn xpbd_limit_row / limit_row_avx2 / limit_row_avx512(
+        x: [&mut [f32]; 3],
+        shared: &Shared<'_>,
+        g: (usize, usize),
+        s: usize,
+        mask: &[f32],
+    ) = grid_xpbd::limit_row;
+}
+
 /// One row of a horizontal pass at spacing 2 of the grid XPBD path (pairs `(c, c + 2)`,
 /// colour `⌊c / 2⌋ mod 2`, from column `first` = 2·colour; `m` slots), projected in place
 /// with only the colour's pairs computed, when `kernel` is AVX-512 (and the CPU has it) and

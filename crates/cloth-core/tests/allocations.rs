@@ -143,6 +143,8 @@ fn threaded_fast_path_steps_do_not_allocate() {
             config.xpbd.chain_rounds = if chains { 2 } else { 1 };
             // With the structural chains, the shear chains too (their blocks are kept).
             config.xpbd.shear_chains = chains;
+            // The structural strain limit (its screened passes) with the chains.
+            config.xpbd.structural_limit = chains.then_some(0.02);
         }
         config.air.wind = Vec3::new(1.0, 0.0, 0.5);
         if integrator == Integrator::ForwardEuler {

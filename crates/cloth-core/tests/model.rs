@@ -554,6 +554,11 @@ fn bad_configs() -> Vec<(SimConfig, &'static str, &'static str)> {
         c.xpbd.chain_rounds = outside;
         v.push((c, "config.xpbd.chain_rounds", "1 ..= 16"));
     }
+    for outside in [-0.01, 1.5, f32::NAN, f32::INFINITY] {
+        let mut c = d();
+        c.xpbd.structural_limit = Some(outside);
+        v.push((c, "config.xpbd.structural_limit", "0 ..= 1"));
+    }
     v.push((
         SimConfig {
             gravity: Vec3::new(0.0, f32::NAN, 0.0),

@@ -138,7 +138,7 @@ fn wrong_types_are_errors() {
 /// Out-of-range and non-finite values name the key, its line and the allowed range.
 #[test]
 fn out_of_range_values_name_key_line_and_range() {
-    let cases: [(&str, &str, &str, usize, &str); 12] = [
+    let cases: [(&str, &str, &str, usize, &str); 14] = [
         (
             "resolution = [8, 8]",
             "resolution = [0, 8]",
@@ -223,12 +223,26 @@ fn out_of_range_values_name_key_line_and_range() {
             12,
             "1 ..= 16",
         ),
+        (
+            "radius = 0.5",
+            "radius = 0.5\n[solver.xpbd]\nstructural_limit = -0.02",
+            "solver.xpbd.structural_limit",
+            11,
+            "0 ..= 1",
+        ),
+        (
+            "radius = 0.5",
+            "radius = 0.5\n[solver.xpbd]\nstructural_limit = 2.0",
+            "solver.xpbd.structural_limit",
+            11,
+            "0 ..= 1",
+        ),
     ];
     for (from, to, key, line, allowed) in cases {
         let src = GOOD.replace(from, to);
         let (_, l, c, k, message) = error_of(&src);
         assert_eq!(k, key, "{to}: {message}");
-        assert_eq!(l, line, "{to}: {message}");
+        assert_eq!(l, line, "{to}: {message} (line {l})");
         assert!(c > 0);
         assert!(message.contains(allowed), "{to}: {message}");
         let shown = Scene::from_toml(&src, "bad.toml").unwrap_err().to_string();

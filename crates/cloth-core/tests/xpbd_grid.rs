@@ -6,16 +6,16 @@ use cloth_core::diagnostics::strain_quantiles;
 use cloth_core::glam::Vec3;
 use cloth_core::simd::{self, Kernel};
 use cloth_core::{
-    Collider, Edge, Friction, GridBuilder, Integrator, Mass, Material, Orientation, SimConfig,
-    Simulation, SpringClass, SpringParams, presets,
+    Cloth, Collider, Edge, Friction, GridBuilder, Integrator, Mass, Material, Orientation,
+    SimConfig, Simulation, SpringClass, SpringKind, SpringParams, presets,
 };
 
 fn bits(v: &[Vec3]) -> Vec<[u32; 3]> {
     v.iter().map(|p| p.to_array().map(f32::to_bits)).collect()
 }
 
-/// The drape with XPBD, air and wind, friction on the ball and the ground, and the strain
-/// limits on.
+/// The drape with XPBD, air and wind, friction on the ball and the ground, and `levels`
+/// levels of multi-resolution strain limits.
 fn drape(n: usize, levels: u32) -> Simulation {
     let mut sim = presets::drape(n, Integrator::Xpbd).expect("drape");
     let mut config = *sim.config();
@@ -47,7 +47,8 @@ fn trace(
 }
 
 /// Determinism: every pass of the grid path writes disjoint rows and uses exact IEEE
-/// arithmetic, so 1, 2 and 3 threads and every kernel this CPU runs give the same bits.
+/// arithmetic, so 1, 2 and 3 threads and every kernel this CPU runs give the same bits (the
+/// drape with four levels of strain limits and the structural limit at 2 %).
 /// Tolerance: none.
 #[test]
 fn grid_path_is_bit_identical_across_threads_and_kernels() {
@@ -55,7 +56,10 @@ fn grid_path_is_bit_identical_across_threads_and_kernels() {
         .into_iter()
         .filter(|k| k.is_available())
         .collect();
-    let base = drape(40, 4);
+    let mut base = drape(40, 4);
+    let mut config = *base.config();
+    config.xpbd.structural_limit = Some(0.02);
+    base.set_config(config).expect("config");
     assert_eq!(
         {
             simd::set_kernel(Some(Kernel::Portable)).expect("portable");
@@ -181,24 +185,7 @@ fn strain_limits_bound_the_stretch_of_a_soft_curtain() {
     let rows = 33;
     let height = 0.64;
     let stretch = |levels: u32, kernel: Kernel| -> f32 {
-        let cloth = GridBuilder::new(rows, 9)
-            .size(0.16, height)
-            .orientation(Orientation::Vertical)
-            .mass(Mass::ArealDensity(0.2))
-            .pin_edge(Edge::Top)
-            .build()
-            .expect("cloth");
-        let mut config = SimConfig {
-            integrator: Integrator::Xpbd,
-            substeps: 10,
-            damping: 0.01,
-            material: Material::isotropic(
-                SpringParams::new(2.0, 0.0),
-                SpringParams::new(0.5, 0.0),
-                SpringParams::new(0.0, 0.0),
-            ),
-            ..SimConfig::default()
-        };
+        let (cloth, mut config) = curtain(2.0, 10);
         config.xpbd.hierarchy_levels = levels;
         config.xpbd.hierarchy_slack = 0.02;
         simd::set_kernel(Some(kernel)).expect("kernel");
@@ -225,6 +212,117 @@ fn strain_limits_bound_the_stretch_of_a_soft_curtain() {
             100.0 * limited
         );
         assert!(limited <= 0.02 + 0.005, "{kernel:?}: {limited}");
+    }
+}
+
+/// The largest strain (|L| − L0)/L0 of the warp and weft springs of `sim`.
+fn max_structural_strain(sim: &Simulation) -> f32 {
+    let p = &sim.particles().position;
+    let t = sim.topology();
+    [SpringKind::Warp, SpringKind::Weft]
+        .into_iter()
+        .flat_map(|k| t.springs_of(k))
+        .map(|s| (p[s.a as usize].distance(p[s.b as usize]) - s.rest_length) / s.rest_length)
+        .fold(f32::MIN, f32::max)
+}
+
+/// A curtain of 33 × 9 particles (0.16 m × 0.64 m, 0.2 kg/m²) hanging from its top edge,
+/// with warp and weft of stiffness `k` (N/m) and soft shear, for XPBD with `substeps`.
+fn curtain(k: f32, substeps: u32) -> (Cloth, SimConfig) {
+    let cloth = GridBuilder::new(33, 9)
+        .size(0.16, 0.64)
+        .orientation(Orientation::Vertical)
+        .mass(Mass::ArealDensity(0.2))
+        .pin_edge(Edge::Top)
+        .build()
+        .expect("cloth");
+    let config = SimConfig {
+        integrator: Integrator::Xpbd,
+        substeps,
+        damping: 0.01,
+        material: Material::isotropic(
+            SpringParams::new(k, 0.0),
+            SpringParams::new(0.5, 0.0),
+            SpringParams::new(0.0, 0.0),
+        ),
+        ..SimConfig::default()
+    };
+    (cloth, config)
+}
+
+/// [`curtain`] with 40 substeps and `limit` as the structural strain limit.
+fn limited_curtain(k: f32, limit: Option<f32>) -> Simulation {
+    let (cloth, mut config) = curtain(k, 40);
+    config.xpbd.structural_limit = limit;
+    Simulation::new(cloth, config).expect("sim")
+}
+
+/// The structural strain limit (Provot 1995; `xpbd.structural_limit`) is a one-sided,
+/// inextensible constraint on every warp and weft spring: a soft curtain (k = 2 N/m, which
+/// stretches its warp by tens of percent without it) keeps every structural spring within
+/// (1 + 0.05)·L0 after every step, on the grid path with every kernel and on the reference
+/// path. The limit is projected once per substep by Gauss–Seidel, and the curtain's weight
+/// pulls its 32-spring columns again every substep, so what is left over the limit is the
+/// sweep's residual: with 40 substeps (g·h² = 6 µm per substep) it stays within 0.5 % of
+/// strain, the tolerance (with 10 substeps it is about 7 %: a long loaded chain needs the
+/// chains or the multi-resolution levels to carry its load). And a cloth whose springs stay
+/// within the limit is left as it is: a stiff curtain (k = 4000 N/m) gives the same bits
+/// with and without a 50 % limit.
+#[test]
+fn structural_limit_bounds_every_warp_and_weft_spring() {
+    let free = {
+        let mut sim = limited_curtain(2.0, None);
+        for _ in 0..120 {
+            sim.step().expect("stable");
+        }
+        max_structural_strain(&sim)
+    };
+    eprintln!("no limit: largest structural strain {:.2}%", 100.0 * free);
+    assert!(
+        free > 0.2,
+        "the soft curtain must stretch without a limit ({free})"
+    );
+    let kernels = [
+        Kernel::Portable,
+        Kernel::Avx2,
+        Kernel::Avx512,
+        Kernel::Reference,
+    ];
+    for kernel in kernels.into_iter().filter(|k| k.is_available()) {
+        simd::set_kernel(Some(kernel)).expect("kernel");
+        let mut sim = limited_curtain(2.0, Some(0.05));
+        let mut worst = f32::MIN;
+        for _ in 0..120 {
+            sim.step().expect("stable");
+            worst = worst.max(max_structural_strain(&sim));
+        }
+        simd::set_kernel(None).expect("default");
+        eprintln!(
+            "limit 5 %, {kernel:?}: largest structural strain {:.3}%",
+            100.0 * worst
+        );
+        assert!(worst <= 0.05 + 0.005, "{kernel:?}: {worst}");
+        assert!(
+            worst > 0.04,
+            "{kernel:?}: the limit must be reached ({worst})"
+        );
+    }
+    for kernel in [Kernel::Portable, Kernel::Reference] {
+        simd::set_kernel(Some(kernel)).expect("kernel");
+        let run = |limit| {
+            let mut sim = limited_curtain(4000.0, limit);
+            for _ in 0..60 {
+                sim.step().expect("stable");
+            }
+            assert!(max_structural_strain(&sim) < 0.5);
+            bits(&sim.particles().position)
+        };
+        let (with, without) = (run(Some(0.5)), run(None));
+        simd::set_kernel(None).expect("default");
+        assert!(
+            with == without,
+            "{kernel:?}: a limit never reached changed the bits"
+        );
     }
 }
 

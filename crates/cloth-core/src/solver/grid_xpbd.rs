@@ -32,7 +32,10 @@
 //!    are several); with `XpbdSettings::shear_chains`, the diagonals and then the
 //!    anti-diagonals as chains along the grid's diagonal lines too, in place of their pair
 //!    passes ([`XpbdGrid::shear_chains`]);
-//! 2. the multi-resolution strain limits, when `XpbdSettings::hierarchy_levels > 0` (after
+//! 2. the structural strain limit, when `XpbdSettings::structural_limit` is set (after
+//!    Provot 1995): every warp and weft spring at most `(1 + limit)` times its rest length,
+//!    the one-sided limit of the next stage at spacing 1, run before its wider spacings; the
+//!    multi-resolution strain limits, when `XpbdSettings::hierarchy_levels > 0` (after
 //!    Wang, O'Brien & Ramamoorthi 2010, "Multi-resolution isotropic strain limiting"): for
 //!    each spacing s = 2, 4, …, 2^levels, particles `s` apart along the warp and along the
 //!    weft may be at most `(1 + hierarchy_slack)` times their rest distance apart (a
@@ -88,6 +91,10 @@ struct Level {
     vertical: Vec<f32>,
     /// Largest allowed distance by slot: `(r, c)`–`(r, c + s)`.
     horizontal: Vec<f32>,
+    /// Whether every row of `vertical`, of `horizontal`, holds the same bits as its first
+    /// row (a flat rest grid): the structural limit's pass then reads the first row for every
+    /// row, a quarter of its reads fewer.
+    uniform: [bool; 2],
 }
 
 /// One scratch vector per thread of a pool, each behind its own (uncontended) lock: what a
@@ -164,7 +171,7 @@ pub(crate) struct XpbdGrid {
     keep: bool,
     /// Strain-limit levels and the `(levels, slack bits)` they were built for.
     levels: Vec<Level>,
-    levels_key: Option<(u32, u32)>,
+    levels_key: Option<(Option<u32>, u32, u32)>,
     /// Air force of every triangle divided by 3 (the share of each corner) of the cell rows
     /// between two bands of [`PREDICT_BAND`] rows (cell row `(k + 1)·PREDICT_BAND − 1` after
     /// band `k`), `6·(cols − 1)` floats each: first triangles' x, y, z, second triangles' x,
@@ -267,26 +274,31 @@ impl XpbdGrid {
         &self.rest[class]
     }
 
-    /// Builds the multi-resolution strain limits from the rest shape when their settings
-    /// changed.
-    fn prepare_levels(&mut self, levels: u32, slack: f32, rest: &[Vec3]) {
-        if self.levels_key == Some((levels, slack.to_bits())) {
+    /// Builds the strain limits from the rest shape when their settings changed: the
+    /// structural limit (`structural`, spacing 1) first, then the multi-resolution levels.
+    fn prepare_levels(&mut self, structural: Option<f32>, levels: u32, slack: f32, rest: &[Vec3]) {
+        let key = (structural.map(f32::to_bits), levels, slack.to_bits());
+        if self.levels_key == Some(key) {
             return;
         }
-        self.levels_key = Some((levels, slack.to_bits()));
+        self.levels_key = Some(key);
         let (rows, cols) = (self.rows, self.cols);
         self.levels.clear();
-        let scale = 1.0 + slack;
-        for l in 1..=levels {
-            let s = 1_usize << l;
+        let spacings = structural
+            .map(|limit| (1, limit))
+            .into_iter()
+            .chain((1..=levels).map(|l| (1_usize << l, slack)));
+        for (s, slack) in spacings {
             if s >= rows.max(cols) {
                 break;
             }
+            let scale = 1.0 + slack;
             let limit = |a: usize, b: usize| scale * rest[a].distance(rest[b]);
             let mut level = Level {
                 spacing: s,
                 vertical: vec![0.0; rows * cols],
                 horizontal: vec![0.0; rows * cols],
+                uniform: [false; 2],
             };
             for r in 0..rows {
                 for c in 0..cols {
@@ -299,6 +311,18 @@ impl XpbdGrid {
                     }
                 }
             }
+            let uniform = |v: &[f32], rows: usize| {
+                let first = &v[..cols];
+                v.chunks_exact(cols).take(rows).all(|row| {
+                    row.iter()
+                        .zip(first)
+                        .all(|(a, b)| a.to_bits() == b.to_bits())
+                })
+            };
+            level.uniform = [
+                uniform(&level.vertical, rows - s.min(rows)),
+                uniform(&level.horizontal, rows),
+            ];
             self.levels.push(level);
         }
     }
@@ -489,12 +513,16 @@ impl XpbdGrid {
         let cfg = ctx.config;
         let settings = cfg.xpbd;
         let h = ctx.h;
-        if settings.hierarchy_levels > 0 {
+        if settings.hierarchy_levels > 0 || settings.structural_limit.is_some() {
             self.prepare_levels(
+                settings.structural_limit,
                 settings.hierarchy_levels,
                 settings.hierarchy_slack,
                 ctx.rest,
             );
+        } else {
+            self.levels.clear();
+            self.levels_key = None;
         }
         self.keep = settings.iterations > 1;
         self.chain_starts = [false; 4];
@@ -572,6 +600,10 @@ impl XpbdGrid {
             }
             for level in 0..self.levels.len() {
                 let s = self.levels[level].spacing;
+                if s == 1 {
+                    self.structural_limit(level);
+                    continue;
+                }
                 for colour in 0..2 {
                     if s < self.rows {
                         self.vertical(s, 0, 0, colour, Rest::Vertical(level), Mode::Limit);
@@ -983,6 +1015,38 @@ impl XpbdGrid {
         }
     }
 
+    /// The structural strain limit (`levels[level]`, spacing 1) in one parallel pass: the
+    /// four coloured passes (warp pairs of rows `(2k, 2k + 1)`, then `(2k − 1, 2k)`, then the
+    /// weft's even and odd columns of every row) as a wavefront down the rows, in bands of
+    /// rows on a `rayon::join` tree ([`Limits`]). Each pair is projected from the same values
+    /// as in the coloured order, so the same bits for any split of the rows.
+    fn structural_limit(&mut self, level: usize) {
+        let (rows, cols) = (self.rows, self.cols);
+        let lv = &self.levels[level];
+        let (prev, w) = (&self.prev, &self.inv_mass);
+        let shared = |rest| Shared {
+            prev,
+            w,
+            rest,
+            mode: Mode::Limit,
+            keep: false,
+        };
+        let [m0, m1] = &self.masks[0];
+        let limits = Limits {
+            warp: shared(&lv.vertical),
+            weft: shared(&lv.horizontal),
+            uniform: lv.uniform,
+            masks: [&m0[..cols - 1], &m1[..cols - 1]],
+            rows,
+            cols,
+            kernel: crate::simd::kernel(),
+        };
+        let [x, y, z] = &mut self.pos;
+        let n = rows * cols;
+        let bands = rayon::current_num_threads().clamp(1, rows.div_ceil(8));
+        limits.run([&mut x[..n], &mut y[..n], &mut z[..n]], 0, rows, bands);
+    }
+
     /// One colour of a class joining row `r` to row `r + dr`: slot `(r, c)` joins
     /// `(r, c + a_dc)` to `(r + dr, c + b_dc)`; colour `⌊r / dr⌋ mod 2`. Rows are handed out
     /// in blocks of `2·dr` (rows `[0, dr)` of a block against rows `[dr, 2·dr)`).
@@ -1102,6 +1166,11 @@ impl XpbdGrid {
                             &mut lam[c0..c0 + len],
                         );
                     }
+                    return;
+                }
+                if matches!(shared.mode, Mode::Limit) {
+                    let g = r * cols;
+                    crate::simd::xpbd_limit_row(kernel, [x, y, z], &shared, (g, g), s, &mask[..m]);
                     return;
                 }
                 if s == 2
@@ -2044,7 +2113,245 @@ pub(crate) fn pairs(
         Mode::Compliant { alpha, gamma } => {
             pairs_in::<false, false>(a, b, sh, g, lambda, (alpha, gamma));
         }
-        Mode::Limit => pairs_in::<true, false>(a, b, sh, g, lambda, (0.0, 0.0)),
+        Mode::Limit => limit_pairs(a, b, sh, g, lambda.len()),
+    }
+}
+
+/// The structural strain limit's wavefront ([`XpbdGrid::structural_limit`]). Step `k` projects
+/// the warp pair of rows `(2k, 2k + 1)` (colour 0), then `(2k − 1, 2k)` (colour 1), then the
+/// weft of rows `2k − 1` and `2k` (their even columns, then their odd ones): a row's weft
+/// runs once both of its warp pairs have, and a colour-1 pair once both of its colour-0
+/// neighbours have, so every pair reads what it reads in the coloured order. A band of rows
+/// `[a, c)` leaves the colour-1 pair `(a − 1, a)` and the weft of rows `a − 1` and `a` to the
+/// join above it, which runs them once both bands are done.
+struct Limits<'a> {
+    warp: Shared<'a>,
+    weft: Shared<'a>,
+    /// [`Level::uniform`]: every row's limits read from the first row.
+    uniform: [bool; 2],
+    /// The weft's colour masks (even, odd columns), `cols − 1` slots each.
+    masks: [&'a [f32]; 2],
+    rows: usize,
+    cols: usize,
+    kernel: crate::simd::Kernel,
+}
+
+impl Limits<'_> {
+    /// Rows `[a, c)` (`x`: their x, y, z) in `bands` bands, split at even rows.
+    fn run(&self, x: [&mut [f32]; 3], a: usize, c: usize, bands: usize) {
+        let b = (a + (c - a) * (bands / 2) / bands.max(1)) & !1;
+        if bands <= 1 || b <= a || b >= c {
+            self.band(x, a, c);
+            return;
+        }
+        let cut = (b - a) * self.cols;
+        let [x, y, z] = x;
+        {
+            let (x0, x1) = x.split_at_mut(cut);
+            let (y0, y1) = y.split_at_mut(cut);
+            let (z0, z1) = z.split_at_mut(cut);
+            rayon::join(
+                || self.run([x0, y0, z0], a, b, bands / 2),
+                || self.run([x1, y1, z1], b, c, bands - bands / 2),
+            );
+        }
+        let mut x = [x, y, z];
+        self.pair(&mut x, a, b - 1);
+        self.row(&mut x, a, b - 1);
+        self.row(&mut x, a, b);
+    }
+
+    /// The wavefront's steps on rows `[a, c)` (`a` even), but for what the join above does.
+    fn band(&self, x: [&mut [f32]; 3], a: usize, c: usize) {
+        let mut x = x;
+        let last = if c == self.rows { c / 2 } else { c / 2 - 1 };
+        for k in a / 2..=last {
+            let r = 2 * k;
+            if r + 1 < c {
+                self.pair(&mut x, a, r);
+            }
+            if k == a / 2 && a > 0 {
+                continue;
+            }
+            if r >= 1 && r < c {
+                self.pair(&mut x, a, r - 1);
+            }
+            if r >= 1 {
+                self.row(&mut x, a, r - 1);
+            }
+            if r < c {
+                self.row(&mut x, a, r);
+            }
+        }
+    }
+
+    /// The warp's limits between rows `r` and `r + 1` (`x` holds rows from `a` on).
+    fn pair(&self, x: &mut [&mut [f32]; 3], a: usize, r: usize) {
+        let cols = self.cols;
+        let at = (r - a) * cols;
+        let [x, y, z] = x;
+        let (xa, xb) = x[at..at + 2 * cols].split_at_mut(cols);
+        let (ya, yb) = y[at..at + 2 * cols].split_at_mut(cols);
+        let (za, zb) = z[at..at + 2 * cols].split_at_mut(cols);
+        let g = r * cols;
+        let slots = if self.uniform[0] { 0 } else { g };
+        crate::simd::xpbd_limit_pairs(
+            self.kernel,
+            [xa, ya, za],
+            [xb, yb, zb],
+            &self.warp,
+            (g, g + cols, slots),
+            cols,
+        );
+    }
+
+    /// The weft's limits of row `r`, even columns then odd ones (`x` holds rows from `a` on).
+    fn row(&self, x: &mut [&mut [f32]; 3], a: usize, r: usize) {
+        let cols = self.cols;
+        let at = (r - a) * cols;
+        let [x, y, z] = x;
+        for mask in self.masks {
+            let row = [
+                &mut x[at..at + cols],
+                &mut y[at..at + cols],
+                &mut z[at..at + cols],
+            ];
+            let g = r * cols;
+            let slots = if self.uniform[1] { 0 } else { g };
+            crate::simd::xpbd_limit_row(self.kernel, row, &self.weft, (g, slots), 1, mask);
+        }
+    }
+}
+
+/// Pairs a strain limit's screen takes at a time ([`limit_pairs`], [`limit_row`]).
+const SCREEN_LANES: usize = 16;
+
+/// Whether a pair of squared length `len2` may be longer than its `limit`: `len2 >
+/// limit²·(1 − 2⁻²⁰)`. The margin is past the rounding of `|l| = √len2` and of `limit²`, so a
+/// pair this is false for has `|l| ≤ limit`, which the limit leaves where it is.
+#[inline(always)]
+fn past_limit(len2: f32, limit: f32) -> bool {
+    const SCREEN: f32 = 1.0 - 1.0 / (1 << 20) as f32;
+    len2 > limit * limit * SCREEN
+}
+
+/// Whether any of the [`SCREEN_LANES`] pairs `a[j]`–`b[j]` with `mask[j]` non-zero may be
+/// past its limit `limit[j]` ([`past_limit`]); a loop the compiler vectorises.
+#[inline(always)]
+fn chunk_past_limit(a: [&[f32]; 3], b: [&[f32]; 3], limit: &[f32], mask: &[f32]) -> bool {
+    let k = SCREEN_LANES;
+    let [xa, ya, za] = a.map(|v| &v[..k]);
+    let [xb, yb, zb] = b.map(|v| &v[..k]);
+    let (limit, mask) = (&limit[..k], &mask[..k]);
+    let mut over = 0_u32;
+    for j in 0..k {
+        let (dx, dy, dz) = (xa[j] - xb[j], ya[j] - yb[j], za[j] - zb[j]);
+        let past = past_limit(dx * dx + dy * dy + dz * dz, limit[j]);
+        over |= u32::from(past && mask[j] != 0.0);
+    }
+    over != 0
+}
+
+/// One-sided strain limits of the pairs `a[i]`–`b[i]`, `i < m` (a vertical pass's two rows,
+/// or a block of a wide horizontal pass), projected in place. Screened: the squared lengths of
+/// [`SCREEN_LANES`] pairs at a time against their limits, and only the pairs
+/// [`past_limit`] projected ([`pair_correction`]'s limit, one by one). Most pairs of a cloth
+/// are within their limits, so the pass costs about one read of the two rows.
+#[inline(always)]
+pub(crate) fn limit_pairs(
+    a: [&mut [f32]; 3],
+    b: [&mut [f32]; 3],
+    sh: &Shared<'_>,
+    (ga, gb, gs): (usize, usize, usize),
+    m: usize,
+) {
+    let [ax, ay, az] = a;
+    let [bx, by, bz] = b;
+    let (ax, ay, az) = (&mut ax[..m], &mut ay[..m], &mut az[..m]);
+    let (bx, by, bz) = (&mut bx[..m], &mut by[..m], &mut bz[..m]);
+    let (wa, wb) = (&sh.w[ga..ga + m], &sh.w[gb..gb + m]);
+    let rest = &sh.rest[gs..gs + m];
+    let mut i0 = 0;
+    while i0 < m {
+        let n = SCREEN_LANES.min(m - i0);
+        if n == SCREEN_LANES
+            && !chunk_past_limit(
+                [&ax[i0..], &ay[i0..], &az[i0..]],
+                [&bx[i0..], &by[i0..], &bz[i0..]],
+                &rest[i0..],
+                &[1.0; SCREEN_LANES],
+            )
+        {
+            i0 += n;
+            continue;
+        }
+        for i in i0..i0 + n {
+            let l = [ax[i] - bx[i], ay[i] - by[i], az[i] - bz[i]];
+            if !past_limit(l[0] * l[0] + l[1] * l[1] + l[2] * l[2], rest[i]) {
+                continue;
+            }
+            let (_, f) =
+                pair_correction::<true>(l, [0.0; 3], wa[i] + wb[i], rest[i], 0.0, (0.0, 0.0));
+            let (sa, sb) = (wa[i] * f, wb[i] * f);
+            ax[i] += sa * l[0];
+            ay[i] += sa * l[1];
+            az[i] += sa * l[2];
+            bx[i] -= sb * l[0];
+            by[i] -= sb * l[1];
+            bz[i] -= sb * l[2];
+        }
+        i0 += n;
+    }
+}
+
+/// One row of a horizontal pass of one-sided strain limits at spacing `s` below
+/// [`BLOCK_SPACING`]: pairs `(c, c + s)` for the `m = mask.len()` slots with `mask[c]` 1 (the
+/// colour; its pairs share no particle), projected in place, screened as in [`limit_pairs`].
+/// `g0`: the particle index of the row's first column; `gs`: the slot of its first limit.
+#[inline(always)]
+pub(crate) fn limit_row(
+    x: [&mut [f32]; 3],
+    sh: &Shared<'_>,
+    (g0, gs): (usize, usize),
+    s: usize,
+    mask: &[f32],
+) {
+    let m = mask.len();
+    let [x, y, z] = x;
+    let (x, y, z) = (&mut x[..m + s], &mut y[..m + s], &mut z[..m + s]);
+    let w = &sh.w[g0..g0 + m + s];
+    let rest = &sh.rest[gs..gs + m];
+    let mut i0 = 0;
+    while i0 < m {
+        let n = SCREEN_LANES.min(m - i0);
+        if n == SCREEN_LANES
+            && !chunk_past_limit(
+                [&x[i0..], &y[i0..], &z[i0..]],
+                [&x[i0 + s..], &y[i0 + s..], &z[i0 + s..]],
+                &rest[i0..],
+                &mask[i0..],
+            )
+        {
+            i0 += n;
+            continue;
+        }
+        for i in i0..i0 + n {
+            let k = i + s;
+            let l = [x[i] - x[k], y[i] - y[k], z[i] - z[k]];
+            if mask[i] == 0.0 || !past_limit(l[0] * l[0] + l[1] * l[1] + l[2] * l[2], rest[i]) {
+                continue;
+            }
+            let (_, f) =
+                pair_correction::<true>(l, [0.0; 3], w[i] + w[k], rest[i], 0.0, (0.0, 0.0));
+            let c = [f * l[0], f * l[1], f * l[2]];
+            x[i] += w[i] * c[0];
+            x[k] -= w[k] * c[0];
+            y[i] += w[i] * c[1];
+            y[k] -= w[k] * c[1];
+            z[i] += w[i] * c[2];
+            z[k] -= w[k] * c[2];
+        }
+        i0 += n;
     }
 }
 
@@ -2225,7 +2532,7 @@ pub(crate) fn row(
         Mode::Compliant { alpha, gamma } => {
             row_in::<false, false>(x, corr, sh, g0, s, lambda, mask, (alpha, gamma));
         }
-        Mode::Limit => row_in::<true, false>(x, corr, sh, g0, s, lambda, mask, (0.0, 0.0)),
+        Mode::Limit => limit_row(x, sh, (g0, g0), s, &mask[..lambda.len()]),
     }
 }
 

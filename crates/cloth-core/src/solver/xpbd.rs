@@ -46,8 +46,8 @@ pub(crate) struct XpbdScratch {
     tethers_built: bool,
     /// Multi-resolution strain limits of the reference path: `(a, b, largest distance)`.
     limits: Vec<Tether>,
-    /// `(levels, slack bits, particles)` the limits were built for.
-    limits_key: Option<(u32, u32, usize)>,
+    /// `(structural limit bits, levels, slack bits, particles)` the limits were built for.
+    limits_key: Option<(Option<u32>, u32, u32, usize)>,
     /// The grid path.
     pub(super) grid: super::grid_xpbd::XpbdGrid,
     /// Multipliers of the chain solves (`XpbdSettings::chains`) by class (warp, weft) and
@@ -109,14 +109,16 @@ impl XpbdScratch {
 }
 
 impl XpbdScratch {
-    /// Builds the reference path's multi-resolution strain limits (the same pairs as the grid
-    /// path's, see `grid_xpbd`): particles 2, 4, …, 2^levels apart along the warp and the weft
-    /// of a grid cloth, at most (1 + slack) times their rest distance apart. None on a cloth
-    /// that is not a grid.
+    /// Builds the reference path's strain limits (the same pairs as the grid path's, see
+    /// `grid_xpbd`): with `structural_limit`, every structural spring at most (1 + limit)
+    /// times its rest distance long (on any cloth); then particles 2, 4, …, 2^levels apart
+    /// along the warp and the weft of a grid cloth, at most (1 + slack) times their rest
+    /// distance apart (none on a cloth that is not a grid).
     fn update_limits(&mut self, ctx: &SubstepCtx<'_>) {
         let settings = ctx.config.xpbd;
         let n = ctx.particles.len();
         let key = (
+            settings.structural_limit.map(f32::to_bits),
             settings.hierarchy_levels,
             settings.hierarchy_slack.to_bits(),
             n,
@@ -126,11 +128,25 @@ impl XpbdScratch {
         }
         self.limits_key = Some(key);
         self.limits.clear();
+        let rest = ctx.rest;
+        if let Some(limit) = settings.structural_limit {
+            let scale = 1.0 + limit;
+            use crate::topology::SpringKind;
+            for kind in [SpringKind::Warp, SpringKind::Weft] {
+                for spring in ctx.topology.springs_of(kind) {
+                    let (a, b) = (spring.a as usize, spring.b as usize);
+                    self.limits.push(Tether {
+                        particle: spring.a,
+                        anchor: spring.b,
+                        max_distance: scale * rest[a].distance(rest[b]),
+                    });
+                }
+            }
+        }
         let Some((rows, cols)) = ctx.topology.grid() else {
             return;
         };
         let scale = 1.0 + settings.hierarchy_slack;
-        let rest = ctx.rest;
         for l in 1..=settings.hierarchy_levels {
             let s = 1_usize << l;
             if s >= rows.max(cols) {
@@ -235,7 +251,8 @@ fn reference_sweeps(
     let h = ctx.h;
     let cfg = ctx.config;
     let settings = cfg.xpbd;
-    if settings.hierarchy_levels > 0 {
+    let limits = settings.hierarchy_levels > 0 || settings.structural_limit.is_some();
+    if limits {
         sc.update_limits(ctx);
     }
     sc.lambda.clear();
@@ -260,7 +277,7 @@ fn reference_sweeps(
         if settings.tethers {
             solve_tethers(&mut *ctx.particles, &sc.tethers);
         }
-        if settings.hierarchy_levels > 0 {
+        if limits {
             solve_limits(&mut *ctx.particles, &sc.limits);
         }
         if let Some(settings) = cfg.self_collision {
