@@ -1131,6 +1131,31 @@ dispatched! {
 }
 
 dispatched! {
+    /// The velocities `(x − x₀)/h` of one component of a row of the grid XPBD path
+    /// ([`grid_xpbd::velocities`]), with `kernel`.
+    fn xpbd_velocities / velocities_avx2 / velocities_avx512(
+        v: &mut [f32],
+        x: &[f32],
+        x0: &[f32],
+        w: &[f32],
+        inv_h: f32,
+    ) = grid_xpbd::velocities;
+}
+
+dispatched! {
+    /// One component of one row of the grid XPBD path's prediction
+    /// ([`grid_xpbd::predict_lane`]), with `kernel`.
+    fn xpbd_predict / predict_avx2 / predict_avx512(
+        lane: &grid_xpbd::PredictLane<'_>,
+        x: &mut [f32],
+        v: &mut [f32],
+        x0: &mut [f32],
+        up: Option<[&[f32]; 2]>,
+        down: Option<[&[f32]; 2]>,
+    ) = grid_xpbd::predict_lane;
+}
+
+dispatched! {
     /// One-sided strain limits of pairs `a[i]`–`b[i]` of the grid XPBD path
     /// ([`grid_xpbd::limit_pairs`]), with `kernel`.
     fn xpbd_limit_pairs / limit_pairs_avx2 / limit_pairs_avx512(

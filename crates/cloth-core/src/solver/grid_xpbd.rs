@@ -492,14 +492,8 @@ impl XpbdGrid {
                             m: m_row,
                             w: w_row,
                         };
-                        match (part(up, comp, m), part(down, comp, m)) {
-                            (Some(u), Some(d)) => lane.run::<true, true>(x, v, x0, u, d),
-                            (Some(u), None) => lane.run::<true, false>(x, v, x0, u, [&[], &[]]),
-                            (None, Some(d)) => lane.run::<false, true>(x, v, x0, [&[], &[]], d),
-                            (None, None) => {
-                                lane.run::<false, false>(x, v, x0, [&[], &[]], [&[], &[]]);
-                            }
-                        }
+                        let (u, d) = (part(up, comp, m), part(down, comp, m));
+                        crate::simd::xpbd_predict(kernel, &lane, x, v, x0, u, d);
                     }
                 }
             });
@@ -1270,7 +1264,7 @@ impl XpbdGrid {
                     (&mut *vy, (&*y, &prev[1][all.clone()])),
                     (&mut *vz, (&*z, &prev[2][all])),
                 ] {
-                    velocities(v, x, x0, w, inv_h);
+                    crate::simd::xpbd_velocities(kernel, v, x, x0, w, inv_h);
                 }
                 let mut count = 0;
                 if colliders.is_empty() {
@@ -1346,7 +1340,7 @@ impl XpbdGrid {
 /// compiler kept a branch and a scalar loop: the select's `else` reads `v`, which it could
 /// not prove apart from the other slices).
 #[inline(always)]
-fn velocities(v: &mut [f32], x: &[f32], x0: &[f32], w: &[f32], inv_h: f32) {
+pub(crate) fn velocities(v: &mut [f32], x: &[f32], x0: &[f32], w: &[f32], inv_h: f32) {
     let n = v.len();
     let (x, x0, w) = (&x[..n], &x0[..n], &w[..n]);
     let one = |v: &mut f32, x: f32, x0: f32, w: f32| {
@@ -1469,7 +1463,7 @@ impl<'a> RowContacts<'a> {
 }
 
 /// One component of [`XpbdGrid::predict`] on one row of particles.
-struct PredictLane<'a> {
+pub(crate) struct PredictLane<'a> {
     /// Substep, s.
     h: f32,
     /// This component of gravity, m/s².
@@ -1479,6 +1473,27 @@ struct PredictLane<'a> {
     /// Masses and inverse masses of the row.
     m: &'a [f32],
     w: &'a [f32],
+}
+
+/// [`PredictLane::run`] with the air shares of the cell rows above (`up`) and below (`down`)
+/// when there are any, for [`crate::simd::xpbd_predict`] to compile for each kernel (the loop
+/// is element-wise IEEE arithmetic: the same bits at any vector width).
+#[inline(always)]
+pub(crate) fn predict_lane(
+    lane: &PredictLane<'_>,
+    x: &mut [f32],
+    v: &mut [f32],
+    x0: &mut [f32],
+    up: Option<[&[f32]; 2]>,
+    down: Option<[&[f32]; 2]>,
+) {
+    let none: [&[f32]; 2] = [&[], &[]];
+    match (up, down) {
+        (Some(u), Some(d)) => lane.run::<true, true>(x, v, x0, u, d),
+        (Some(u), None) => lane.run::<true, false>(x, v, x0, u, none),
+        (None, Some(d)) => lane.run::<false, true>(x, v, x0, none, d),
+        (None, None) => lane.run::<false, false>(x, v, x0, none, none),
+    }
 }
 
 impl PredictLane<'_> {
