@@ -1168,6 +1168,17 @@ dispatched! {
 }
 
 dispatched! {
+    /// Both colours of a row of the structural limit's weft ([`grid_xpbd::limit_row_both`]),
+    /// with `kernel`.
+    fn xpbd_limit_row_both / limit_row_both_avx2 / limit_row_both_avx512(
+        x: [&mut [f32]; 3],
+        shared: &Shared<'_>,
+        g: (usize, usize),
+        masks: [&[f32]; 2],
+    ) = grid_xpbd::limit_row_both;
+}
+
+dispatched! {
     /// One row of a horizontal pass of strain limits of the grid XPBD path
     /// ([`grid_xpbd::limit_row`]), with `kernel`.
     fn xpbd_limit_row / limit_row_avx2 / limit_row_avx512(

@@ -2225,16 +2225,14 @@ impl Limits<'_> {
         let cols = self.cols;
         let at = (r - a) * cols;
         let [x, y, z] = x;
-        for mask in self.masks {
-            let row = [
-                &mut x[at..at + cols],
-                &mut y[at..at + cols],
-                &mut z[at..at + cols],
-            ];
-            let g = r * cols;
-            let slots = if self.uniform[1] { 0 } else { g };
-            crate::simd::xpbd_limit_row(self.kernel, row, &self.weft, (g, slots), 1, mask);
-        }
+        let row = [
+            &mut x[at..at + cols],
+            &mut y[at..at + cols],
+            &mut z[at..at + cols],
+        ];
+        let g = r * cols;
+        let slots = if self.uniform[1] { 0 } else { g };
+        crate::simd::xpbd_limit_row_both(self.kernel, row, &self.weft, (g, slots), self.masks);
     }
 }
 
@@ -2333,16 +2331,17 @@ pub(crate) fn limit_row(
 ) {
     let m = mask.len();
     let [x, y, z] = x;
-    let (x, y, z) = (&mut x[..m + s], &mut y[..m + s], &mut z[..m + s]);
+    let mut x = [&mut x[..m + s], &mut y[..m + s], &mut z[..m + s]];
     let w = &sh.w[g0..g0 + m + s];
     let rest = &sh.rest[gs..gs + m];
     let mut i0 = 0;
     while i0 < m {
         let n = SCREEN_LANES.min(m - i0);
+        let [xs, ys, zs] = &x;
         if n == SCREEN_LANES
             && !chunk_past_limit(
-                [&x[i0..], &y[i0..], &z[i0..]],
-                [&x[i0 + s..], &y[i0 + s..], &z[i0 + s..]],
+                [&xs[i0..], &ys[i0..], &zs[i0..]],
+                [&xs[i0 + s..], &ys[i0 + s..], &zs[i0 + s..]],
                 &rest[i0..],
                 &mask[i0..],
             )
@@ -2350,23 +2349,101 @@ pub(crate) fn limit_row(
             i0 += n;
             continue;
         }
-        for i in i0..i0 + n {
-            let k = i + s;
-            let l = [x[i] - x[k], y[i] - y[k], z[i] - z[k]];
-            if mask[i] == 0.0 || !past_limit(l[0] * l[0] + l[1] * l[1] + l[2] * l[2], rest[i]) {
-                continue;
-            }
-            let (_, f) =
-                pair_correction::<true>(l, [0.0; 3], w[i] + w[k], rest[i], 0.0, (0.0, 0.0));
-            let c = [f * l[0], f * l[1], f * l[2]];
-            x[i] += w[i] * c[0];
-            x[k] -= w[k] * c[0];
-            y[i] += w[i] * c[1];
-            y[k] -= w[k] * c[1];
-            z[i] += w[i] * c[2];
-            z[k] -= w[k] * c[2];
-        }
+        project_span(&mut x, (w, rest, mask), s, i0..i0 + n);
         i0 += n;
+    }
+}
+
+/// The pairs `(i, i + s)` of a row for `i` in `span` with `mask[i]` non-zero and
+/// [`past_limit`], projected one by one onto their limits (`w`, `rest`: the row's inverse
+/// masses and limits); returns whether it projected any.
+#[inline(always)]
+fn project_span(
+    [x, y, z]: &mut [&mut [f32]; 3],
+    (w, rest, mask): (&[f32], &[f32], &[f32]),
+    s: usize,
+    span: std::ops::Range<usize>,
+) -> bool {
+    let mut any = false;
+    for i in span {
+        let k = i + s;
+        let l = [x[i] - x[k], y[i] - y[k], z[i] - z[k]];
+        if mask[i] == 0.0 || !past_limit(l[0] * l[0] + l[1] * l[1] + l[2] * l[2], rest[i]) {
+            continue;
+        }
+        let (_, f) = pair_correction::<true>(l, [0.0; 3], w[i] + w[k], rest[i], 0.0, (0.0, 0.0));
+        let c = [f * l[0], f * l[1], f * l[2]];
+        x[i] += w[i] * c[0];
+        x[k] -= w[k] * c[0];
+        y[i] += w[i] * c[1];
+        y[k] -= w[k] * c[1];
+        z[i] += w[i] * c[2];
+        z[k] -= w[k] * c[2];
+        any = true;
+    }
+    any
+}
+
+/// Chunks of [`SCREEN_LANES`] pairs a row of [`limit_row_both`] may hold (its two bit sets).
+const ROW_CHUNKS: usize = crate::grid::MAX_GRID_SIDE / SCREEN_LANES + 2;
+
+/// Bit `c` of a bit set of chunks.
+#[inline(always)]
+fn chunk_bit(set: &[u64], c: usize) -> bool {
+    (set[c / 64] >> (c % 64)) & 1 != 0
+}
+
+/// [`limit_row`] at spacing 1 for both colours of a row, `masks[0]` and then `masks[1]`, with
+/// one screen of every pair instead of one per colour: a chunk of [`SCREEN_LANES`] pairs is
+/// projected in colour 0 when one of its pairs was past its limit, and in colour 1 also when
+/// colour 0 moved a particle of its pairs (a projection in the chunk or in the next chunk's
+/// first pair). Any other chunk's pairs were within their limits and have not moved, which
+/// [`limit_row`]'s screen would find too: the same projections, the same bits.
+#[inline(always)]
+pub(crate) fn limit_row_both(
+    x: [&mut [f32]; 3],
+    sh: &Shared<'_>,
+    (g0, gs): (usize, usize),
+    masks: [&[f32]; 2],
+) {
+    let m = masks[0].len();
+    let chunks = m / SCREEN_LANES;
+    let [x, y, z] = x;
+    let mut x = [&mut x[..m + 1], &mut y[..m + 1], &mut z[..m + 1]];
+    let w = &sh.w[g0..g0 + m + 1];
+    let rest = &sh.rest[gs..gs + m];
+    let mut flagged = [0_u64; ROW_CHUNKS.div_ceil(64)];
+    let mut moved = flagged;
+    debug_assert!(chunks + 2 <= 64 * flagged.len());
+    for c in 0..chunks {
+        let i0 = c * SCREEN_LANES;
+        let [xs, ys, zs] = &x;
+        if chunk_past_limit(
+            [&xs[i0..], &ys[i0..], &zs[i0..]],
+            [&xs[i0 + 1..], &ys[i0 + 1..], &zs[i0 + 1..]],
+            &rest[i0..],
+            &[1.0; SCREEN_LANES],
+        ) {
+            flagged[c / 64] |= 1 << (c % 64);
+        }
+    }
+    // The last, partial chunk (index `chunks`) is never screened: always projected.
+    let span = |c: usize| c * SCREEN_LANES..((c + 1) * SCREEN_LANES).min(m);
+    for c in 0..=chunks {
+        if (c == chunks || chunk_bit(&flagged, c))
+            && project_span(&mut x, (w, rest, masks[0]), 1, span(c))
+        {
+            moved[c / 64] |= 1 << (c % 64);
+        }
+    }
+    for c in 0..=chunks {
+        let touched = c == chunks
+            || chunk_bit(&flagged, c)
+            || chunk_bit(&moved, c)
+            || chunk_bit(&moved, c + 1);
+        if touched {
+            project_span(&mut x, (w, rest, masks[1]), 1, span(c));
+        }
     }
 }
 
