@@ -429,7 +429,8 @@ pub struct SimConfig {
     /// Provot-style strain limiting for the force-based integrators: after each substep,
     /// structural and shear springs stretched past (1 + limit)·L0 are shortened back to it
     /// (positions and velocities corrected, mass-weighted). `None` (the default) is off;
-    /// otherwise `> 0`, e.g. 0.1 for 10 %.
+    /// otherwise `> 0`, e.g. 0.1 for 10 %. XPBD does not read it: its counterpart, a
+    /// constraint inside its sweeps, is [`XpbdSettings::structural_limit`].
     pub strain_limit: Option<f32>,
     /// Implicit Euler settings.
     pub implicit: ImplicitSettings,

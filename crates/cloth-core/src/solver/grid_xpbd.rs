@@ -2078,14 +2078,12 @@ fn air_force(k: &AirCoefficients, x0: V3, x1: V3, x2: V3, v0: V3, v1: V3, v2: V3
     }
 }
 
-/// The correction of one pair: `(dl, s)`, its multiplier's change `Δλ` and the factor `s =
-/// Δλ / |l|` that moves its ends along `l` (the first end by `w_a·s·l`, the second by
-/// `−w_b·s·l`): one division per pair instead of two (`1 / |l|` and `Δλ`). Both are zero for
-/// a pair that does not move (both ends pinned, zero length, slack limit). `dl` is unused
-/// (zero) for a limit.
+/// The correction of one compliant pair: `(dl, s)`, its multiplier's change `Δλ` and the
+/// factor `s = Δλ / |l|` that moves its ends along `l` (the first end by `w_a·s·l`, the second
+/// by `−w_b·s·l`): one division per pair instead of two (`1 / |l|` and `Δλ`). Both are zero
+/// for a pair that does not move (both ends pinned, zero length).
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn pair_correction<const LIMIT: bool>(
+fn pair_correction(
     l: [f32; 3],
     rate_d: [f32; 3],
     wsum: f32,
@@ -2096,19 +2094,27 @@ fn pair_correction<const LIMIT: bool>(
     let len2 = l[0] * l[0] + l[1] * l[1] + l[2] * l[2];
     let len = len2.sqrt();
     let ok = wsum > 0.0 && len > 0.0;
-    if LIMIT {
-        let s = (rest - len) / (wsum * len);
-        (0.0, if ok && len > rest { s } else { 0.0 })
-    } else {
-        // Δλ = (−C − α̃·λ − γ·(l·d)/|l|) / ((1 + γ)·wsum + α̃), times |l| / |l| so that s =
-        // Δλ / |l| takes one division.
-        let constraint = len - rest;
-        let ld = l[0] * rate_d[0] + l[1] * rate_d[1] + l[2] * rate_d[2];
-        let num = (-constraint - alpha * lambda) * len - gamma * ld;
-        let den = ((1.0 + gamma) * wsum + alpha) * len2;
-        let s = if ok { num / den } else { 0.0 };
-        (s * len, s)
+    // Δλ = (−C − α̃·λ − γ·(l·d)/|l|) / ((1 + γ)·wsum + α̃), times |l| / |l| so that s =
+    // Δλ / |l| takes one division.
+    let constraint = len - rest;
+    let ld = l[0] * rate_d[0] + l[1] * rate_d[1] + l[2] * rate_d[2];
+    let num = (-constraint - alpha * lambda) * len - gamma * ld;
+    let den = ((1.0 + gamma) * wsum + alpha) * len2;
+    let s = if ok { num / den } else { 0.0 };
+    (s * len, s)
+}
+
+/// The factor `s` that puts a pair `l` longer than its `limit` back onto it (its ends move
+/// by `w_a·s·l` and `−w_b·s·l`), or `None` when the limit leaves the pair where it is: within
+/// the limit ([`past_limit`]'s screen, then exactly), zero length, or both ends pinned.
+#[inline(always)]
+fn limit_factor(l: [f32; 3], wsum: f32, limit: f32) -> Option<f32> {
+    let len2 = l[0] * l[0] + l[1] * l[1] + l[2] * l[2];
+    if !past_limit(len2, limit) {
+        return None;
     }
+    let len = len2.sqrt();
+    (wsum > 0.0 && len > 0.0 && len > limit).then(|| (limit - len) / (wsum * len))
 }
 
 /// Projects the pairs `a[i]`–`b[i]` in place (a vertical pass's two rows). `g = (a0, b0,
@@ -2123,10 +2129,10 @@ pub(crate) fn pairs(
 ) {
     match sh.mode {
         Mode::Compliant { alpha, gamma } if sh.keep => {
-            pairs_in::<false, true>(a, b, sh, g, lambda, (alpha, gamma));
+            pairs_in::<true>(a, b, sh, g, lambda, (alpha, gamma));
         }
         Mode::Compliant { alpha, gamma } => {
-            pairs_in::<false, false>(a, b, sh, g, lambda, (alpha, gamma));
+            pairs_in::<false>(a, b, sh, g, lambda, (alpha, gamma));
         }
         Mode::Limit => limit_pairs(a, b, sh, g, lambda.len()),
     }
@@ -2268,7 +2274,7 @@ fn chunk_past_limit(a: [&[f32]; 3], b: [&[f32]; 3], limit: &[f32], mask: &[f32])
 /// One-sided strain limits of the pairs `a[i]`–`b[i]`, `i < m` (a vertical pass's two rows,
 /// or a block of a wide horizontal pass), projected in place. Screened: the squared lengths of
 /// [`SCREEN_LANES`] pairs at a time against their limits, and only the pairs
-/// [`past_limit`] projected ([`pair_correction`]'s limit, one by one). Most pairs of a cloth
+/// [`past_limit`] projected, one by one ([`limit_factor`]). Most pairs of a cloth
 /// are within their limits, so the pass costs about one read of the two rows.
 #[inline(always)]
 pub(crate) fn limit_pairs(
@@ -2300,11 +2306,9 @@ pub(crate) fn limit_pairs(
         }
         for i in i0..i0 + n {
             let l = [ax[i] - bx[i], ay[i] - by[i], az[i] - bz[i]];
-            if !past_limit(l[0] * l[0] + l[1] * l[1] + l[2] * l[2], rest[i]) {
+            let Some(f) = limit_factor(l, wa[i] + wb[i], rest[i]) else {
                 continue;
-            }
-            let (_, f) =
-                pair_correction::<true>(l, [0.0; 3], wa[i] + wb[i], rest[i], 0.0, (0.0, 0.0));
+            };
             let (sa, sb) = (wa[i] * f, wb[i] * f);
             ax[i] += sa * l[0];
             ay[i] += sa * l[1];
@@ -2368,10 +2372,12 @@ fn project_span(
     for i in span {
         let k = i + s;
         let l = [x[i] - x[k], y[i] - y[k], z[i] - z[k]];
-        if mask[i] == 0.0 || !past_limit(l[0] * l[0] + l[1] * l[1] + l[2] * l[2], rest[i]) {
+        if mask[i] == 0.0 {
             continue;
         }
-        let (_, f) = pair_correction::<true>(l, [0.0; 3], w[i] + w[k], rest[i], 0.0, (0.0, 0.0));
+        let Some(f) = limit_factor(l, w[i] + w[k], rest[i]) else {
+            continue;
+        };
         let c = [f * l[0], f * l[1], f * l[2]];
         x[i] += w[i] * c[0];
         x[k] -= w[k] * c[0];
@@ -2448,7 +2454,7 @@ pub(crate) fn limit_row_both(
 }
 
 #[inline(always)]
-fn pairs_in<const LIMIT: bool, const KEEP: bool>(
+fn pairs_in<const KEEP: bool>(
     a: [&mut [f32]; 3],
     b: [&mut [f32]; 3],
     sh: &Shared<'_>,
@@ -2482,7 +2488,7 @@ fn pairs_in<const LIMIT: bool, const KEEP: bool>(
             (az[i] - paz[i]) - (bz[i] - pbz[i]),
         ];
         let lam = if KEEP { lambda[i] } else { 0.0 };
-        let (dl, f) = pair_correction::<LIMIT>(l, d, wa[i] + wb[i], rest[i], lam, params);
+        let (dl, f) = pair_correction(l, d, wa[i] + wb[i], rest[i], lam, params);
         if KEEP {
             lambda[i] += dl;
         }
@@ -2593,7 +2599,7 @@ pub(crate) fn quads_scalar(
                 (y[i] - py[i]) - (y[k] - py[k]),
                 (z[i] - pz[i]) - (z[k] - pz[k]),
             ];
-            let (_, f) = pair_correction::<false>(l, d, w[i] + w[k], rest[i], 0.0, params);
+            let (_, f) = pair_correction(l, d, w[i] + w[k], rest[i], 0.0, params);
             let c = [f * l[0], f * l[1], f * l[2]];
             x[i] += w[i] * c[0];
             x[k] -= w[k] * c[0];
@@ -2619,10 +2625,10 @@ pub(crate) fn row(
 ) {
     match sh.mode {
         Mode::Compliant { alpha, gamma } if sh.keep => {
-            row_in::<false, true>(x, corr, sh, g0, s, lambda, mask, (alpha, gamma));
+            row_in::<true>(x, corr, sh, g0, s, lambda, mask, (alpha, gamma));
         }
         Mode::Compliant { alpha, gamma } => {
-            row_in::<false, false>(x, corr, sh, g0, s, lambda, mask, (alpha, gamma));
+            row_in::<false>(x, corr, sh, g0, s, lambda, mask, (alpha, gamma));
         }
         Mode::Limit => limit_row(x, sh, (g0, g0), s, &mask[..lambda.len()]),
     }
@@ -2630,7 +2636,7 @@ pub(crate) fn row(
 
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn row_in<const LIMIT: bool, const KEEP: bool>(
+fn row_in<const KEEP: bool>(
     x: [&mut [f32]; 3],
     corr: [&mut [f32]; 3],
     sh: &Shared<'_>,
@@ -2667,7 +2673,7 @@ fn row_in<const LIMIT: bool, const KEEP: bool>(
                 (za[i] - pza[i]) - (zb[i] - pzb[i]),
             ];
             let lam = if KEEP { lambda[i] } else { 0.0 };
-            let (dl, f) = pair_correction::<LIMIT>(l, d, wa[i] + wb[i], rest[i], lam, params);
+            let (dl, f) = pair_correction(l, d, wa[i] + wb[i], rest[i], lam, params);
             if KEEP {
                 lambda[i] += dl * mask[i];
             }
