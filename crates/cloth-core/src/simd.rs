@@ -63,8 +63,10 @@ impl Kernel {
         }
     }
 
-    /// Whether this CPU can run the kernel.
+    /// Whether this CPU can run the kernel (inlined: every dispatch asks, and out of line its
+    /// feature tests took about 1 % of a drape's samples).
     #[must_use]
+    #[inline(always)]
     pub fn is_available(self) -> bool {
         match self {
             Self::Reference | Self::Portable => true,
@@ -75,7 +77,8 @@ impl Kernel {
             }
             #[cfg(target_arch = "x86_64")]
             Self::Avx512 => {
-                Self::Avx2.is_available()
+                std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("fma")
                     && std::arch::is_x86_feature_detected!("avx512f")
                     && std::arch::is_x86_feature_detected!("avx512vl")
             }

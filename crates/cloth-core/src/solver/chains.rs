@@ -196,8 +196,12 @@ pub(crate) fn solve<const L: usize, const N: usize>(
                     let (wa, wb) = (w_a[l], w_b[l]);
                     let ws = wa + wb;
                     let active = length > 0.0 && ws > 0.0 && rest_k[l] >= 0.0;
-                    (ex[l], ey[l], ez[l]) = if active {
-                        let inv = 1.0 / length;
+                    // The direction in locals, stored once at the end of the lane: assigned to
+                    // `ex[l]…` in both arms of the `if`, it became two masked stores to the
+                    // stack and a reload, which the processor cannot forward (a fifth of the
+                    // solve's samples waited on that reload).
+                    let inv = 1.0 / length;
+                    let (ux, uy, uz) = if active {
                         (dx * inv, dy * inv, dz * inv)
                     } else {
                         (0.0, 0.0, 0.0)
@@ -207,7 +211,7 @@ pub(crate) fn solve<const L: usize, const N: usize>(
                         (yb[l] - pyb[l]) - (ya[l] - pya[l]),
                         (zb[l] - pzb[l]) - (za[l] - pza[l]),
                     );
-                    let rate = (ex[l] * vx) + (ey[l] * vy) + (ez[l] * vz);
+                    let rate = (ux * vx) + (uy * vy) + (uz * vz);
                     let constraint = length - rest_k[l];
                     diag_k[l] = if active { g1 * ws + alpha } else { 1.0 };
                     rhs_k[l] = if active {
@@ -217,8 +221,9 @@ pub(crate) fn solve<const L: usize, const N: usize>(
                     };
                     // Coupling with spring k − 1 through particle k (zero for k = 0).
                     let cos =
-                        (n_prev[0][l] * ex[l]) + (n_prev[1][l] * ey[l]) + (n_prev[2][l] * ez[l]);
+                        (n_prev[0][l] * ux) + (n_prev[1][l] * uy) + (n_prev[2][l] * uz);
                     e_k[l] = -(g1 * wa) * cos;
+                    (ex[l], ey[l], ez[l]) = (ux, uy, uz);
                 }
                 (nx[k], ny[k], nz[k]) = (ex, ey, ez);
                 (cp[k], dp[k], diag[k]) = (e_k, rhs_k, diag_k);
