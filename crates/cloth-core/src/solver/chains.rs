@@ -73,8 +73,9 @@ pub(crate) const FIELDS: usize = 9;
 
 /// Scratch arrays of one solve, written before they are read (any content will do, so one
 /// set per thread serves every block it solves, and stays in that core's cache): direction
-/// x, y, z, the eliminated super-diagonal and right-hand side, the diagonal.
-pub(crate) const SCRATCH: usize = 6;
+/// x, y, z, the eliminated super-diagonal and right-hand side (the diagonal goes from each
+/// spring's computation to its elimination step in registers).
+pub(crate) const SCRATCH: usize = 5;
 
 /// One block of `L` chains of `len` particles, step-major (entry `(k, lane)` at `k·L + lane`;
 /// the per-spring arrays use entries `k < len − 1`, spring `k` joining particles `k` and
@@ -96,8 +97,6 @@ pub(crate) struct Block<'a> {
     pub cp: &'a mut [f32],
     /// Scratch: right-hand side after elimination.
     pub dp: &'a mut [f32],
-    /// Scratch: the diagonal before elimination.
-    pub diag: &'a mut [f32],
 }
 
 impl<'a> Block<'a> {
@@ -116,7 +115,6 @@ impl<'a> Block<'a> {
         let n = [next(), next(), next()];
         let cp = next();
         let dp = next();
-        let diag = next();
         Self {
             x,
             prev,
@@ -126,14 +124,13 @@ impl<'a> Block<'a> {
             n,
             cp,
             dp,
-            diag,
         }
     }
 }
 
 /// Solves the `L` chains of `len ≥ 2` particles of each of `N` blocks (see the module docs):
-/// one forward elimination (directions, constraint values, the tridiagonal matrix and its
-/// elimination, from the current positions), then one back substitution applying every
+/// one forward pass (each spring's direction, constraint value and row of the tridiagonal
+/// matrix from the current positions, eliminated right away), then one back substitution applying every
 /// multiplier's change to the positions (and, with `keep`, adding it to the multipliers, which
 /// are read as zero otherwise). Plain IEEE `f32` (no fused multiply-add), the same for every
 /// lane count and every `N`: each lane's operations are the same, whatever else is solved
@@ -157,29 +154,36 @@ pub(crate) fn solve<const L: usize, const N: usize>(
 ) {
     debug_assert!(len >= 2);
     let g1 = 1.0 + gamma;
-    // 1. Per block, everything that does not depend on the elimination's recurrence
-    // (directions, constraint values, right-hand sides, diagonals and couplings of every
-    // spring: independent steps that the processor overlaps).
-    for block in &mut blocks {
-        let w = &block.w.as_chunks::<L>().0[..len];
-        let rest = &block.rest.as_chunks::<L>().0[..len];
-        let [px, py, pz] = block.prev.map(|a| &a.as_chunks::<L>().0[..len]);
-        let [xs, ys, zs] = block.x.each_ref().map(|a| &a.as_chunks::<L>().0[..len]);
-        let lam = &block.lambda.as_chunks::<L>().0[..len];
-        let [nx, ny, nz] = block
-            .n
-            .each_mut()
-            .map(|a| &mut a.as_chunks_mut::<L>().0[..len]);
-        let cp = &mut block.cp.as_chunks_mut::<L>().0[..len];
-        let dp = &mut block.dp.as_chunks_mut::<L>().0[..len];
-        let diag = &mut block.diag.as_chunks_mut::<L>().0[..len];
-        // Spring k from spring k − 1's direction `n_prev`: writes its direction, its
-        // right-hand side into `dp[k]`, its diagonal into `diag[k]` and its coupling with
-        // spring k − 1 (through particle k) into `cp[k]`.
+    // 1. The forward pass down the chains, the blocks' steps interleaved: step k of a block
+    // first computes spring k (its direction, constraint value, right-hand side, diagonal and
+    // coupling with spring k − 1: no dependence on the elimination's recurrence, so the
+    // processor overlaps them with it), then eliminates it. What the elimination reads was
+    // written a moment before and is still in L1; computed in a pass of their own, the
+    // springs' diagonals, couplings and right-hand sides went out to L2 and came back.
+    {
+        let mut views = blocks.each_mut().map(|block| {
+            (
+                &block.w.as_chunks::<L>().0[..len],
+                &block.rest.as_chunks::<L>().0[..len],
+                block.prev.map(|a| &a.as_chunks::<L>().0[..len]),
+                block.x.each_ref().map(|a| &a.as_chunks::<L>().0[..len]),
+                &block.lambda.as_chunks::<L>().0[..len],
+                block
+                    .n
+                    .each_mut()
+                    .map(|a| &mut a.as_chunks_mut::<L>().0[..len]),
+                &mut block.cp.as_chunks_mut::<L>().0[..len],
+                &mut block.dp.as_chunks_mut::<L>().0[..len],
+            )
+        });
+        // Spring k of block i, from spring k − 1's direction `n_prev`: writes its direction
+        // and gives its coupling with spring k − 1 (through particle k), its right-hand side
+        // and its diagonal, which the elimination's step takes in registers.
         macro_rules! spring {
-            ($k:expr, $n_prev:expr) => {{
-                let k: usize = $k;
+            ($i:expr, $k:expr, $n_prev:expr) => {{
+                let (i, k): (usize, usize) = ($i, $k);
                 let n_prev: [[f32; L]; 3] = $n_prev;
+                let (w, rest, [px, py, pz], [xs, ys, zs], lam, [nx, ny, nz], ..) = &mut views[i];
                 let (a, b) = (k, k + 1);
                 // Local copies: the lane loop then reads and writes only locals and
                 // vectorises without alias checks.
@@ -226,39 +230,23 @@ pub(crate) fn solve<const L: usize, const N: usize>(
                     (ex[l], ey[l], ez[l]) = (ux, uy, uz);
                 }
                 (nx[k], ny[k], nz[k]) = (ex, ey, ez);
-                (cp[k], dp[k], diag[k]) = (e_k, rhs_k, diag_k);
+                (e_k, rhs_k, diag_k)
             }};
         }
-        spring!(0, [[0.0; L]; 3]);
-        for k in 1..len - 1 {
-            spring!(k, [nx[k - 1], ny[k - 1], nz[k - 1]]);
-        }
-        // Entry len − 1 (past the last spring): a zero change and direction, which the back
-        // substitution's first step reads as its successor's.
-        dp[len - 1] = [0.0; L];
-        (nx[len - 1], ny[len - 1], nz[len - 1]) = ([0.0; L], [0.0; L], [0.0; L]);
-    }
-    // 2. The elimination, the blocks' steps interleaved. Step k, from the reciprocal `m_prev`
-    // of spring k − 1's eliminated diagonal and its right-hand side `dp_prev`: the eliminated
-    // right-hand side replaces `dp[k]`, the coupling `c` goes into `cp[k − 1]` (k > 0) and the
-    // reciprocal of the eliminated diagonal into `cp[k]` (read back as `m_prev` by step k + 1,
-    // then overwritten with its coupling): one division per step. The recurrences go through the block's arrays (each step reads what the step
-    // before it wrote, from L1), not through arrays carried in the loop, which the compiler
-    // split into scalars or spilled.
-    {
-        let mut views = blocks.each_mut().map(|b| {
-            (
-                &mut b.cp.as_chunks_mut::<L>().0[..len],
-                &mut b.dp.as_chunks_mut::<L>().0[..len],
-                &b.diag.as_chunks::<L>().0[..len],
-            )
-        });
+        // The elimination's step k of block i, from the reciprocal `m_prev` of spring k − 1's
+        // eliminated diagonal and its right-hand side `dp_prev`: the eliminated right-hand
+        // side replaces `dp[k]`, the coupling `c` goes into `cp[k − 1]` (k > 0) and the
+        // reciprocal of the eliminated diagonal into `cp[k]` (read back as `m_prev` by step
+        // k + 1, then overwritten with its coupling): one division per step. The recurrences
+        // go through the block's arrays (each step reads what the step before it wrote, from
+        // L1), not through arrays carried in the loop, which the compiler split into scalars
+        // or spilled.
         macro_rules! eliminate {
-            ($i:expr, $k:expr, $m_prev:expr, $dp_prev:expr) => {{
+            ($i:expr, $k:expr, $spring:expr, $m_prev:expr, $dp_prev:expr) => {{
                 let (i, k): (usize, usize) = ($i, $k);
+                let (e_k, rhs_k, diag_k): ([f32; L], [f32; L], [f32; L]) = $spring;
                 let (m_prev, dp_prev): ([f32; L], [f32; L]) = ($m_prev, $dp_prev);
-                let (cp, dp, diag) = &mut views[i];
-                let (e_k, rhs_k, diag_k) = (cp[k], dp[k], diag[k]);
+                let (.., cp, dp) = &mut views[i];
                 let (mut c_k, mut m_k, mut d) = ([0.0_f32; L], [0.0_f32; L], [0.0_f32; L]);
                 for l in 0..L {
                     let e = e_k[l];
@@ -276,7 +264,8 @@ pub(crate) fn solve<const L: usize, const N: usize>(
             }};
         }
         for i in 0..N {
-            eliminate!(i, 0, [1.0; L], [0.0; L]);
+            let spring = spring!(i, 0, [[0.0; L]; 3]);
+            eliminate!(i, 0, spring, [1.0; L], [0.0; L]);
         }
         if let Some(ahead) = ahead {
             ahead.row(0);
@@ -289,14 +278,21 @@ pub(crate) fn solve<const L: usize, const N: usize>(
                 ahead.row(k);
             }
             for i in 0..N {
-                eliminate!(i, k, views[i].0[k - 1], views[i].1[k - 1]);
+                let n = &views[i].5;
+                let spring = spring!(i, k, [n[0][k - 1], n[1][k - 1], n[2][k - 1]]);
+                let (.., cp, dp) = &views[i];
+                eliminate!(i, k, spring, cp[k - 1], dp[k - 1]);
             }
         }
-        for (cp, _, _) in &mut views {
+        for (.., [nx, ny, nz], cp, dp) in &mut views {
+            // Entry len − 1 (past the last spring): a zero change and direction, which the
+            // back substitution's first step reads as its successor's.
+            dp[len - 1] = [0.0; L];
+            (nx[len - 1], ny[len - 1], nz[len - 1]) = ([0.0; L], [0.0; L], [0.0; L]);
             cp[len - 2] = [0.0; L];
         }
     }
-    // 3. The back substitution, the blocks' steps interleaved. The multipliers' changes
+    // 2. The back substitution, the blocks' steps interleaved. The multipliers' changes
     // replace the right-hand sides in place (`dp[k]` becomes Δλ_k, read by step k − 1 as its
     // successor's).
     let mut parts = blocks.map(|block| {
