@@ -48,7 +48,8 @@ fn trace(
 
 /// Determinism: every pass of the grid path writes disjoint rows and uses exact IEEE
 /// arithmetic, so 1, 2 and 3 threads and every kernel this CPU runs give the same bits (the
-/// drape with four levels of strain limits and the structural limit at 2 %).
+/// drape with four levels of strain limits and the structural limit at 2 %, and with chain
+/// solves in two rounds per sweep and the structural limit).
 /// Tolerance: none.
 #[test]
 fn grid_path_is_bit_identical_across_threads_and_kernels() {
@@ -70,22 +71,34 @@ fn grid_path_is_bit_identical_across_threads_and_kernels() {
         Kernel::Portable,
         "the grid path must apply"
     );
-    let reference = trace(base.clone(), Kernel::Portable, 40);
-    assert!(
-        reference.2.iter().any(|&c| c > 0),
-        "the cloth must touch the ball"
-    );
-    for threads in [1, 2, 3] {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("pool");
-        for &kernel in &kernels {
-            let got = pool.install(|| trace(base.clone(), kernel, 40));
-            assert!(
-                got == reference,
-                "{threads} threads, {kernel:?}: different bits"
-            );
+    // The real-time drape's setting too: chain solves with two Newton iterations and two
+    // rounds per sweep, and the structural limit.
+    let mut rounds = drape(40, 0);
+    let mut config = *rounds.config();
+    config.substeps = 5;
+    config.xpbd.chains = true;
+    config.xpbd.chain_iterations = 2;
+    config.xpbd.chain_rounds = 2;
+    config.xpbd.structural_limit = Some(0.02);
+    rounds.set_config(config).expect("config");
+    for (name, base) in [("levels", base), ("chain rounds", rounds)] {
+        let reference = trace(base.clone(), Kernel::Portable, 40);
+        assert!(
+            reference.2.iter().any(|&c| c > 0),
+            "{name}: the cloth must touch the ball"
+        );
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("pool");
+            for &kernel in &kernels {
+                let got = pool.install(|| trace(base.clone(), kernel, 40));
+                assert!(
+                    got == reference,
+                    "{name}, {threads} threads, {kernel:?}: different bits"
+                );
+            }
         }
     }
 }
