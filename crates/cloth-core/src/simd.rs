@@ -71,14 +71,10 @@ impl Kernel {
         match self {
             Self::Reference | Self::Portable => true,
             #[cfg(target_arch = "x86_64")]
-            Self::Avx2 => {
-                std::arch::is_x86_feature_detected!("avx2")
-                    && std::arch::is_x86_feature_detected!("fma")
-            }
+            Self::Avx2 => avx2_fma(),
             #[cfg(target_arch = "x86_64")]
             Self::Avx512 => {
-                std::arch::is_x86_feature_detected!("avx2")
-                    && std::arch::is_x86_feature_detected!("fma")
+                avx2_fma()
                     && std::arch::is_x86_feature_detected!("avx512f")
                     && std::arch::is_x86_feature_detected!("avx512vl")
             }
@@ -95,6 +91,14 @@ impl Kernel {
             .find(|k| k.is_available())
             .unwrap_or(Self::Portable)
     }
+}
+
+/// Whether the CPU has AVX2 and FMA, which both the AVX2 and the AVX-512 kernels need (a
+/// function of its own, not a recursive `is_available`, so that every dispatch inlines it).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn avx2_fma() -> bool {
+    std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
 }
 
 thread_local! {

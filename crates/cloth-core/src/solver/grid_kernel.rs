@@ -1171,17 +1171,8 @@ fn contacts_row(
         // `near` already holds the continuous-collision candidates ([`ccd_mask_soa`]).
         let range = s * job.cols..(s + 1) * job.cols;
         let (w, a) = (&job.inv_mass[range], start);
-        let mut i = 0;
-        let n = px.len();
-        while i < n {
-            if !near[i] {
-                i += 1;
-                continue;
-            }
-            let mut j = i + 1;
-            while j < n && near[j] {
-                j += 1;
-            }
+        for run in runs(&near[..px.len()]) {
+            let (i, j) = (run.start, run.end);
             result.ccd += ccd::resolve_in(
                 job.colliders,
                 &a[i..j],
@@ -1190,7 +1181,6 @@ fn contacts_row(
                 &w[i..j],
                 job.h,
             );
-            i = j;
         }
         return;
     }
@@ -1202,17 +1192,8 @@ fn contacts_row(
         Scheme::Verlet => 0.5 * job.h,
     };
     near_mask(job, start, px, near);
-    let mut i = 0;
-    let n = px.len();
-    while i < n {
-        if !near[i] {
-            i += 1;
-            continue;
-        }
-        let mut j = i + 1;
-        while j < n && near[j] {
-            j += 1;
-        }
+    for run in runs(&near[..px.len()]) {
+        let (i, j) = (run.start, run.end);
         let (x, v, w, a) = (&mut px[i..j], &mut pv[i..j], &w[i..j], &start[i..j]);
         if !job.soa_contacts {
             result.contacts += resolve_contacts_in(job.colliders, x, v, w, pos_weight);
@@ -1243,8 +1224,26 @@ fn contacts_row(
             // (No projection pass: the solver runs it only after strain limiting or
             // self-collision, and the plan fuses continuous collision only without them.)
         }
-        i = j;
     }
+}
+
+/// The maximal runs `i..j` of `true` entries of `mask`, in order (the candidates of a chunk,
+/// resolved a run at a time).
+pub(super) fn runs(mask: &[bool]) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
+    let mut i = 0;
+    std::iter::from_fn(move || {
+        while i < mask.len() && !mask[i] {
+            i += 1;
+        }
+        if i == mask.len() {
+            return None;
+        }
+        let start = i;
+        while i < mask.len() && mask[i] {
+            i += 1;
+        }
+        Some(start..i)
+    })
 }
 
 /// The discrete contact pass ([`crate::collide::resolve_contacts`]) on row `s`'s new state in

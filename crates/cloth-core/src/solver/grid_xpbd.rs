@@ -1306,16 +1306,8 @@ impl XpbdGrid {
                         if !any {
                             continue;
                         }
-                        let mut k = 0;
-                        while k < n {
-                            if !near[k] {
-                                k += 1;
-                                continue;
-                            }
-                            let mut l = k + 1;
-                            while l < n && near[l] {
-                                l += 1;
-                            }
+                        for run in super::grid_kernel::runs(&near[..n]) {
+                            let (k, l) = (run.start, run.end);
                             for j in k..l {
                                 let (c, i) = (c0 + j, i0 + j);
                                 a[j] = Vec3::new(prev[0][i], prev[1][i], prev[2][i]);
@@ -1335,7 +1327,6 @@ impl XpbdGrid {
                                 (x[c], y[c], z[c]) = (p[j].x, p[j].y, p[j].z);
                                 (vx[c], vy[c], vz[c]) = (v[j].x, v[j].y, v[j].z);
                             }
-                            k = l;
                         }
                     }
                     (touched, count)
@@ -2389,16 +2380,29 @@ fn project_span(
         let Some(f) = limit_factor(l, w[i] + w[k], rest[i]) else {
             continue;
         };
-        let c = [f * l[0], f * l[1], f * l[2]];
-        x[i] += w[i] * c[0];
-        x[k] -= w[k] * c[0];
-        y[i] += w[i] * c[1];
-        y[k] -= w[k] * c[1];
-        z[i] += w[i] * c[2];
-        z[k] -= w[k] * c[2];
+        move_ends([&mut **x, &mut **y, &mut **z], (i, k), (w[i], w[k]), f, l);
         any = true;
     }
     any
+}
+
+/// Moves the ends `i` and `k` of a pair `l = x_i − x_k` of a row by the factor `f` (a
+/// correction `c = f·l`): `x_i += w_i·c`, `x_k −= w_k·c`, component by component.
+#[inline(always)]
+fn move_ends(
+    [x, y, z]: [&mut [f32]; 3],
+    (i, k): (usize, usize),
+    (wi, wk): (f32, f32),
+    f: f32,
+    l: [f32; 3],
+) {
+    let c = [f * l[0], f * l[1], f * l[2]];
+    x[i] += wi * c[0];
+    x[k] -= wk * c[0];
+    y[i] += wi * c[1];
+    y[k] -= wk * c[1];
+    z[i] += wi * c[2];
+    z[k] -= wk * c[2];
 }
 
 /// Chunks of [`SCREEN_LANES`] pairs a row of [`limit_row_both`] may hold (its two bit sets).
@@ -2611,13 +2615,7 @@ pub(crate) fn quads_scalar(
                 (z[i] - pz[i]) - (z[k] - pz[k]),
             ];
             let (_, f) = pair_correction(l, d, w[i] + w[k], rest[i], 0.0, params);
-            let c = [f * l[0], f * l[1], f * l[2]];
-            x[i] += w[i] * c[0];
-            x[k] -= w[k] * c[0];
-            y[i] += w[i] * c[1];
-            y[k] -= w[k] * c[1];
-            z[i] += w[i] * c[2];
-            z[k] -= w[k] * c[2];
+            move_ends([&mut *x, &mut *y, &mut *z], (i, k), (w[i], w[k]), f, l);
         }
     }
 }
