@@ -49,7 +49,8 @@ fn trace(
 /// Determinism: every pass of the grid path writes disjoint rows and uses exact IEEE
 /// arithmetic, so 1, 2 and 3 threads and every kernel this CPU runs give the same bits (the
 /// drape with four levels of strain limits and the structural limit at 2 %, and with chain
-/// solves in two rounds per sweep and the structural limit).
+/// solves in two rounds per sweep and the structural limit, on a square and on a strip whose
+/// chains are solved one block at a time).
 /// Tolerance: none.
 #[test]
 fn grid_path_is_bit_identical_across_threads_and_kernels() {
@@ -81,7 +82,20 @@ fn grid_path_is_bit_identical_across_threads_and_kernels() {
     config.xpbd.chain_rounds = 2;
     config.xpbd.structural_limit = Some(0.02);
     rounds.set_config(config).expect("config");
-    for (name, base) in [("levels", base), ("chain rounds", rounds)] {
+    // Chains too long for two blocks to be solved interleaved (a pair would not fit
+    // `chains::INTERLEAVED_BYTES`): one block per task. A strip of 24 × 320 particles, the
+    // same settings.
+    let mut scene = cloth_core::scene::builtin("drape").expect("built-in");
+    scene.cloth.resolution = [320, 24];
+    scene.solver.kind = Integrator::Xpbd.name().into();
+    scene.solver.substeps = cloth_core::scene::SubstepsDesc::default();
+    let mut long = scene.build().expect("strip");
+    long.set_config(config).expect("config");
+    for (name, base) in [
+        ("levels", base),
+        ("chain rounds", rounds),
+        ("long chains", long),
+    ] {
         let reference = trace(base.clone(), Kernel::Portable, 40);
         assert!(
             reference.2.iter().any(|&c| c > 0),

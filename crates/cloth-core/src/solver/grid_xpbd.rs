@@ -630,9 +630,9 @@ impl XpbdGrid {
 
     /// The chain solves of the warp (`class` 0, one chain per column) or of the weft
     /// (`class` 1, one per row), see [`super::chains`]: blocks of [`super::chains::LANES`] chains
-    /// gathered, solved and scattered back, pairs of blocks ([`PAIR`]) in parallel (each
-    /// block's chains are independent of the others', so any thread count gives the same
-    /// bits). A pair of weft blocks is gathered, solved and written back in one task (its rows
+    /// gathered, solved and scattered back, pairs of blocks ([`PAIR`], or single blocks of
+    /// long chains) in parallel (each block's chains are independent of the others', so any
+    /// thread count gives the same bits). A pair of weft blocks is gathered, solved and written back in one task (its rows
     /// are its own), followed there by the contacts of its rows with `contacts` (the colliders
     /// and the substep) when given; the warp's columns are written back row by row in a second
     /// pass.
@@ -668,10 +668,13 @@ impl XpbdGrid {
             scratch.reset(blocks * FIELDS * size, CHAIN_SLOT + class);
             self.chain_statics[class] = false;
         }
-        // Blocks go in pairs, solved together (their recurrences interleaved, `chains::solve`).
-        let pair = PAIR * FIELDS * size;
+        // Blocks per task: a pair, solved together (their recurrences interleaved,
+        // `chains::solve`), when two fit in L2; else one (gathered, solved and scattered before
+        // the next is gathered).
+        let per = if chains::pair_fits(size) { PAIR } else { 1 };
+        let pair = per * FIELDS * size;
         self.chain_work
-            .prepare(PAIR * chains::SCRATCH * size, SCRATCH_SLOT);
+            .prepare(per * chains::SCRATCH * size, SCRATCH_SLOT);
         let work = &self.chain_work;
         let (statics, starts) = chain_flags(&mut self.chain_statics, &mut self.chain_starts, class);
         let solve = |chunk: &mut [f32], ahead: Option<&chains::Ahead<'_>>| {
@@ -694,7 +697,7 @@ impl XpbdGrid {
             let keep = self.keep;
             let [x, y, z] = &mut self.pos;
             let lambda = &mut self.lambda[class];
-            let rows_per = PAIR * LANES * cols;
+            let rows_per = per * LANES * cols;
             scratch
                 .par_chunks_mut(pair)
                 .zip(x.par_chunks_mut(rows_per))
@@ -703,9 +706,9 @@ impl XpbdGrid {
                 .zip(lambda.par_chunks_mut(rows_per))
                 .enumerate()
                 .for_each(|(p, ((((chunk, x), y), z), lam))| {
-                    let first_row = p * PAIR * LANES;
+                    let first_row = p * per * LANES;
                     for (h, block) in chunk.chunks_exact_mut(FIELDS * size).enumerate() {
-                        let b = p * PAIR + h;
+                        let b = p * per + h;
                         let first = b * LANES;
                         let at = first * cols;
                         let mine = h * LANES * cols..;
@@ -778,7 +781,7 @@ impl XpbdGrid {
             .enumerate()
             .for_each(|(p, chunk)| {
                 for (h, block) in chunk.chunks_exact_mut(FIELDS * size).enumerate() {
-                    let b = p * PAIR + h;
+                    let b = p * per + h;
                     let first = b * LANES;
                     if let Some(weft) = from {
                         // The grid seen transposed: the warp's block from the weft's.
@@ -801,7 +804,7 @@ impl XpbdGrid {
                 // The next pair's columns (most often this thread's next task: rayon hands
                 // each thread a contiguous range) fetched into L2 during this pair's solve,
                 // when they come from the rows.
-                let next = (p + 1) * PAIR * LANES;
+                let next = (p + 1) * per * LANES;
                 let ahead = (next < count && (from.is_none() || starts)).then(|| {
                     let pos = |f: usize| from.is_none().then_some(&[x, y, z][f][..]);
                     let start = |f: usize| starts.then_some(&prev[f][..]);
@@ -809,7 +812,7 @@ impl XpbdGrid {
                         fields: [pos(0), pos(1), pos(2), start(0), start(1), start(2)],
                         first: next,
                         stride: cols,
-                        span: (PAIR * LANES).min(count - next),
+                        span: (per * LANES).min(count - next),
                     }
                 });
                 solve(chunk, ahead.as_ref());
@@ -1368,7 +1371,8 @@ pub(crate) fn velocities(v: &mut [f32], x: &[f32], x0: &[f32], w: &[f32], inv_h:
 
 /// Blocks of chains per task of the chain solves, solved together: the elimination and the
 /// back substitution are recurrences along the chains, and two blocks' run side by side
-/// (`chains::solve`).
+/// (`chains::solve`). One block per task where two would not stay in L2
+/// (`chains::pair_fits`: chains longer than 291 particles).
 const PAIR: usize = 2;
 
 /// Lanes per chunk of [`velocities`].
