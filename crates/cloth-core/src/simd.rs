@@ -1438,6 +1438,73 @@ dispatched! {
     ) = grid_xpbd::air_row;
 }
 
+/// Whether this CPU runs `PREFETCHW` (CPUID leaf 8000_0001h, ECX bit 8, which Linux calls
+/// `3dnowprefetch`: every AMD processor of the last fifteen years and Intel's since
+/// Broadwell). Asked once.
+#[cfg(target_arch = "x86_64")]
+fn has_prefetchw() -> bool {
+    static HAS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *HAS.get_or_init(|| {
+        use std::arch::x86_64::__cpuid;
+        // SAFETY: CPUID exists on every x86_64 processor; leaf 8000_0000h gives the highest
+        // extended leaf, asked before leaf 8000_0001h.
+        #[allow(unused_unsafe)]
+        let (max, ecx) = unsafe {
+            let max = __cpuid(0x8000_0000).eax;
+            (
+                max,
+                if max >= 0x8000_0001 {
+                    __cpuid(0x8000_0001).ecx
+                } else {
+                    0
+                },
+            )
+        };
+        max >= 0x8000_0001 && ecx & (1 << 8) != 0
+    })
+}
+
+/// Asks for every cache line of `v` in a state this core may write (`PREFETCHW`), ahead of
+/// writing them: a line the other threads have read since this one last wrote it must first
+/// be taken from their caches, and a loop whose stores wait for that stalls (a hint only: it
+/// changes no value; nothing on a processor without the instruction).
+#[inline(always)]
+pub(crate) fn prefetch_w(v: &[f32]) {
+    #[cfg(target_arch = "x86_64")]
+    if has_prefetchw() {
+        for line in v.chunks(16) {
+            // SAFETY: a prefetch reads and writes nothing architecturally and never faults;
+            // the pointer is the slice's own, and the processor runs the instruction (above).
+            unsafe {
+                std::arch::asm!(
+                    "prefetchw [{0}]",
+                    in(reg) line.as_ptr(),
+                    options(nostack, preserves_flags, readonly)
+                );
+            }
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = v;
+}
+
+/// Asks for every cache line of `v` to be brought into L1 (`prefetcht0`; nothing on other
+/// targets): a hint for a read that the hardware prefetcher would not see coming (a jump to
+/// another array, or lines another core has just written). It changes no result and never
+/// faults.
+#[inline(always)]
+pub(crate) fn prefetch_r(v: &[f32]) {
+    #[cfg(target_arch = "x86_64")]
+    for line in v.chunks(16) {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        // SAFETY: a prefetch reads nothing architecturally and never faults; the pointer is
+        // the slice's own.
+        unsafe { _mm_prefetch::<_MM_HINT_T0>(line.as_ptr().cast()) };
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = v;
+}
+
 /// Asks for the cache line holding `v`'s first entry to be brought into L2 (a prefetch hint,
 /// `prefetcht1`; nothing on other targets). It changes no result and never faults.
 #[inline(always)]

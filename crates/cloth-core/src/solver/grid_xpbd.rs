@@ -473,27 +473,38 @@ impl XpbdGrid {
                     };
                     let (up, down) = (cells(true), cells(false));
                     let (m_row, w_row) = (&mass[r * cols..][..cols], &w[r * cols..][..cols]);
+                    let (x_row, x_next) = row_and_next(x, i, cols);
+                    let (y_row, y_next) = row_and_next(y, i, cols);
+                    let (z_row, z_next) = row_and_next(z, i, cols);
+                    let (x0_row, x0_next) = row_and_next(x0, i, cols);
+                    let (y0_row, y0_next) = row_and_next(y0, i, cols);
+                    let (z0_row, z0_next) = row_and_next(z0, i, cols);
                     let lanes = [
                         (
-                            &mut x[at.clone()],
+                            x_row,
                             &mut vx[at.clone()],
-                            &mut x0[at.clone()],
+                            x0_row,
                             gravity.x,
+                            [x_next, x0_next],
                         ),
                         (
-                            &mut y[at.clone()],
+                            y_row,
                             &mut vy[at.clone()],
-                            &mut y0[at.clone()],
+                            y0_row,
                             gravity.y,
+                            [y_next, y0_next],
                         ),
-                        (
-                            &mut z[at.clone()],
-                            &mut vz[at.clone()],
-                            &mut z0[at],
-                            gravity.z,
-                        ),
+                        (z_row, &mut vz[at], z0_row, gravity.z, [z_next, z0_next]),
                     ];
-                    for (comp, (x, v, x0, g)) in lanes.into_iter().enumerate() {
+                    for (comp, (x, v, x0, g, next)) in lanes.into_iter().enumerate() {
+                        // The next row's lines of this component (positions and start
+                        // positions), taken for writing while this one runs: the chain
+                        // solves' gathers read them on every thread, and stores that wait
+                        // for a line held by the other core stalled this pass (at 512² on 2
+                        // threads it took 7 times the CPU time of a 1-thread run).
+                        for a in next {
+                            crate::simd::prefetch_w(a);
+                        }
                         let lane = PredictLane {
                             h,
                             g,
@@ -1479,6 +1490,14 @@ pub(crate) struct PredictLane<'a> {
     /// Masses and inverse masses of the row.
     m: &'a [f32],
     w: &'a [f32],
+}
+
+/// Row `i` of `a` (rows of `cols` entries), writable, and the row after it (empty after the
+/// last row).
+fn row_and_next(a: &mut [f32], i: usize, cols: usize) -> (&mut [f32], &[f32]) {
+    let (row, rest) = a[i * cols..].split_at_mut(cols);
+    let n = rest.len().min(cols);
+    (row, &rest[..n])
 }
 
 /// [`PredictLane::run`] with the air shares of the cell rows above (`up`) and below (`down`)
