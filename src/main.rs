@@ -101,7 +101,8 @@ struct SceneArgs {
     /// A built-in scene (`cloth scenes` lists them) or a TOML scene file.
     #[arg(value_name = "SCENE", default_value = "drape")]
     scene: String,
-    /// Particles along the cloth's rows (columns in proportion). Default: the scene's.
+    /// Particles along the cloth's rows (columns in proportion). Default: the scene's. Another
+    /// resolution (or integrator) chooses the substeps again, unless --set gives them.
     #[arg(long, value_name = "N", value_parser = sim_cmd::parse_resolution)]
     resolution: Option<usize>,
     /// The time integrator. Default: the scene's.
@@ -270,6 +271,7 @@ fn render(
     let adapter = gpu.adapter_name();
     let mut offscreen = cloth_view::Offscreen::new(gpu, size);
     let camera = cloth_view::default_camera(&args.scene);
+    offscreen.set_fovy(cloth_view::default_fovy(&args.scene));
     let result = offscreen
         .render(&sim, &camera, options)
         .and_then(|img| img.save(png).map_err(anyhow::Error::from));

@@ -202,7 +202,11 @@ impl App {
             world,
             gfx: None,
             camera: crate::default_camera(&scene),
-            projection: Projection::new(options.size[0], options.size[1], crate::FOVY),
+            projection: Projection::new(
+                options.size[0],
+                options.size[1],
+                crate::default_fovy(&scene),
+            ),
             options,
             orbit: OrbitController::default(),
             fly: FlyController::default(),
@@ -291,6 +295,7 @@ impl App {
 
     fn reset_view(&mut self) {
         self.camera = crate::default_camera(&self.world.scene);
+        self.projection.fovy = crate::default_fovy(&self.world.scene);
     }
 
     fn release_grab(&mut self) {
@@ -462,6 +467,7 @@ impl App {
                 } else if changed_scene {
                     self.render.floor = Some(scene.display_floor());
                     self.camera = crate::default_camera(&scene);
+                    self.projection.fovy = crate::default_fovy(&scene);
                     if let Some(g) = &self.gfx {
                         g.window.set_title(&format!("cloth — {scene}"));
                     }

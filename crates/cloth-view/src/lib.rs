@@ -22,7 +22,7 @@ pub mod scene;
 pub mod timestep;
 pub mod ui;
 
-/// Vertical field of view of every view, radians (40°).
+/// Vertical field of view of the main built-in scenes' hand-tuned framings, radians (40°).
 pub const FOVY: f32 = 40.0 * std::f32::consts::PI / 180.0;
 
 pub use camera::{Camera, FlyController, OrbitController, Projection, Ray};
@@ -31,11 +31,17 @@ pub use offscreen::Offscreen;
 pub use renderer::{RenderOptions, Renderer};
 pub use scene::SceneKind;
 
-/// The camera that frames `scene` nicely for the default window and the PNG renders.
+/// The camera that frames `scene` for the default window and the PNG renders
+/// ([`SceneKind::start_view`]).
 #[must_use]
 pub fn default_camera(scene: &SceneKind) -> Camera {
-    let (target, distance) = scene.focus();
-    Camera::looking_at(target, distance)
+    scene.start_view().0
+}
+
+/// The vertical field of view `scene` starts with, radians ([`SceneKind::start_view`]).
+#[must_use]
+pub fn default_fovy(scene: &SceneKind) -> f32 {
+    scene.start_view().1
 }
 
 /// The render options that suit `scene` (its display floor).

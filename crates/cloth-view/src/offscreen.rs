@@ -21,6 +21,8 @@ pub struct Offscreen {
     view: wgpu::TextureView,
     readback: wgpu::Buffer,
     padded_row: u32,
+    /// Vertical field of view of the projection, radians.
+    fovy: f32,
 }
 
 /// Bytes per row of a readback buffer for `width` pixels of 4 bytes (padded to 256).
@@ -135,6 +137,7 @@ impl Offscreen {
             view,
             readback,
             padded_row,
+            fovy: crate::FOVY,
         }
     }
 
@@ -150,11 +153,18 @@ impl Offscreen {
         self.targets.samples
     }
 
-    /// A projection matching this target's aspect ratio.
+    /// A projection matching this target's aspect ratio, at the field of view set by
+    /// [`Offscreen::set_fovy`] ([`crate::FOVY`] until then).
     #[must_use]
     pub fn projection(&self) -> Projection {
         let [w, h] = self.size();
-        Projection::new(w, h, crate::FOVY)
+        Projection::new(w, h, self.fovy)
+    }
+
+    /// Sets the vertical field of view of the renders that follow, radians (e.g.
+    /// [`crate::default_fovy`] of the scene).
+    pub fn set_fovy(&mut self, fovy: f32) {
+        self.fovy = fovy;
     }
 
     /// Renders `sim` seen by `camera` and returns the image.

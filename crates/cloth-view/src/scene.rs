@@ -10,6 +10,23 @@ use cloth_core::{ClothError, Integrator, Simulation};
 pub struct SceneKind {
     name: String,
     scene: Scene,
+    /// Whether `--set` gave `camera…` (a built-in scene's hand-tuned framing then gives way).
+    camera_set: bool,
+    /// Whether `--set` gave the substeps (kept when the resolution or integrator changes).
+    substeps_set: bool,
+}
+
+/// Whether one of `overrides` (`KEY=VALUE`) sets `key` itself, a key under it
+/// (`key.…`, `key[…]`), or, given as a whole table at `parent`, its field `field`.
+fn overrides_key(overrides: &[String], key: &str, parent: Option<(&str, &str)>) -> bool {
+    overrides.iter().any(|o| {
+        let (k, v) = o.split_once('=').unwrap_or((o, ""));
+        let k = k.trim();
+        let under = k
+            .strip_prefix(key)
+            .is_some_and(|rest| rest.is_empty() || rest.starts_with(['.', '[']));
+        under || parent.is_some_and(|(table, field)| k == table && v.contains(field))
+    })
 }
 
 impl SceneKind {
@@ -22,6 +39,8 @@ impl SceneKind {
         Ok(Self {
             name: name_or_path.to_string(),
             scene,
+            camera_set: overrides_key(overrides, "camera", None),
+            substeps_set: overrides_key(overrides, "solver.substeps", Some(("solver", "substeps"))),
         })
     }
 
@@ -31,6 +50,8 @@ impl SceneKind {
         scene::builtin(name).map(|scene| Self {
             name: name.to_string(),
             scene,
+            camera_set: false,
+            substeps_set: false,
         })
     }
 
@@ -112,23 +133,32 @@ impl SceneKind {
         lowest - 0.5
     }
 
-    /// A good point for the camera to look at, and the distance to look from: the scene
-    /// file's `[camera]` when it has one.
+    /// Where the view starts: the camera and its vertical field of view (radians). The scene's
+    /// `[camera]` (eye, target, `fov_degrees`); for the main built-in scenes (drape, hanging,
+    /// peer-ball, flag) a hand-tuned framing at [`crate::FOVY`] instead, unless `--set camera…`
+    /// changed their `[camera]`; a scene without one is looked at from 2.5 m.
     #[must_use]
-    pub fn focus(&self) -> (Vec3, f32) {
-        match self.name.as_str() {
+    pub fn start_view(&self) -> (crate::Camera, f32) {
+        let tuned = match self.name.as_str() {
             // Hand-tuned framings of the main scenes (the reference image uses the drape's).
-            "drape" => (Vec3::new(0.0, -0.05, 0.0), 1.9),
-            "hanging" => (Vec3::new(0.0, 0.95, 0.0), 2.4),
-            "peer-ball" => (Vec3::new(0.0, 0.0, 0.0), 2.4),
-            "flag" => (Vec3::new(0.75, 1.1, 0.0), 3.0),
-            _ => match &self.scene.camera {
-                Some(c) => {
-                    let (eye, target) = (Vec3::from(c.eye), Vec3::from(c.target));
-                    (target, eye.distance(target).max(0.1))
-                }
-                None => (Vec3::from(self.scene.cloth.origin), 2.5),
-            },
+            "drape" => Some((Vec3::new(0.0, -0.05, 0.0), 1.9)),
+            "hanging" => Some((Vec3::new(0.0, 0.95, 0.0), 2.4)),
+            "peer-ball" => Some((Vec3::new(0.0, 0.0, 0.0), 2.4)),
+            "flag" => Some((Vec3::new(0.75, 1.1, 0.0), 3.0)),
+            _ => None,
+        };
+        match (tuned.filter(|_| !self.camera_set), &self.scene.camera) {
+            (Some((target, distance)), _) => {
+                (crate::Camera::looking_at(target, distance), crate::FOVY)
+            }
+            (None, Some(c)) => (
+                crate::Camera::new(Vec3::from(c.eye), Vec3::from(c.target)),
+                c.fov_degrees.to_radians(),
+            ),
+            (None, None) => (
+                crate::Camera::looking_at(Vec3::from(self.scene.cloth.origin), 2.5),
+                crate::FOVY,
+            ),
         }
     }
 
@@ -151,7 +181,9 @@ impl SceneKind {
         }
         if integrator != s.integrator() || rows != r0 {
             s.solver.kind = integrator.name().into();
-            s.solver.substeps = SubstepsDesc::default();
+            if !self.substeps_set {
+                s.solver.substeps = SubstepsDesc::default();
+            }
         }
         s
     }
@@ -198,6 +230,92 @@ mod tests {
         // the cloth keeps its 1 m side
         let sp = other.cloth.spacing.expect("spacing");
         assert!((sp[0] * 31.0 - 0.0078125 * 127.0).abs() < 1e-6);
+    }
+
+    /// Substeps given with `--set` survive a new resolution or integrator (they were reset
+    /// to "auto", so `cloth render drape --resolution 512 --set solver.substeps=8` ran
+    /// another count); substeps from the file alone are still chosen again.
+    #[test]
+    fn substeps_given_on_the_command_line_are_kept() {
+        let load = |set: &[&str]| {
+            let set: Vec<String> = set.iter().map(|s| (*s).to_string()).collect();
+            SceneKind::load("drape", &set).expect("drape loads")
+        };
+        for set in [
+            &["solver.substeps=8"][..],
+            &[r#"solver = { kind = "xpbd", substeps = 8 }"#],
+        ] {
+            let scene = load(set).effective(64, Integrator::Xpbd);
+            assert_eq!(scene.solver.substeps, SubstepsDesc::Count(8), "{set:?}");
+            assert_eq!(scene.cloth.resolution, [64, 64]);
+        }
+        let peer = SceneKind::load("peer-ball", &[]).expect("peer-ball loads");
+        assert_eq!(peer.scene().solver.substeps, SubstepsDesc::Count(53));
+        let other = peer.effective(32, Integrator::Xpbd);
+        assert_eq!(other.solver.substeps, SubstepsDesc::default());
+        let kind_only = load(&[r#"solver.kind="xpbd""#]).effective(64, Integrator::Xpbd);
+        assert_eq!(kind_only.solver.substeps, SubstepsDesc::default());
+    }
+
+    /// The view starts where the scene's `[camera]` says (eye, target, field of view), except
+    /// for the main built-in scenes' hand-tuned framings, which `--set camera…` overrides.
+    #[test]
+    fn the_start_view_follows_the_scenes_camera() {
+        let close = |a: Vec3, b: Vec3| a.distance(b) < 1e-6;
+        let drape = SceneKind::drape();
+        let (cam, fovy) = drape.start_view();
+        assert!(close(cam.target, Vec3::new(0.0, -0.05, 0.0)));
+        assert!((cam.distance() - 1.9).abs() < 1e-5);
+        assert!((fovy - crate::FOVY).abs() < 1e-7);
+
+        let set = [
+            "camera.eye=[0.25, 0.9, 0.35]".to_string(),
+            "camera.fov_degrees=30.0".to_string(),
+        ];
+        let moved = SceneKind::load("drape", &set).expect("drape loads");
+        let (cam, fovy) = moved.start_view();
+        assert!(close(cam.eye, Vec3::new(0.25, 0.9, 0.35)));
+        assert!(close(cam.target, Vec3::ZERO), "the file's target");
+        assert!((fovy - 30f32.to_radians()).abs() < 1e-7);
+
+        // A built-in scene without a tuned framing: its file's eye, target and 45°.
+        let fold = SceneKind::builtin("fold").expect("fold");
+        let c = fold.scene().camera.expect("fold has a [camera]");
+        let (cam, fovy) = fold.start_view();
+        assert!(close(cam.eye, Vec3::from(c.eye)) && close(cam.target, Vec3::from(c.target)));
+        assert!((fovy - 45f32.to_radians()).abs() < 1e-7);
+    }
+
+    #[test]
+    fn which_overrides_set_a_key() {
+        let o = |v: &[&str]| v.iter().map(|s| (*s).to_string()).collect::<Vec<_>>();
+        assert!(overrides_key(&o(&["camera.eye=[1,2,3]"]), "camera", None));
+        assert!(overrides_key(
+            &o(&["camera={eye=[1,2,3],target=[0,0,0]}"]),
+            "camera",
+            None
+        ));
+        assert!(!overrides_key(
+            &o(&["cloth.resolution=[4,4]"]),
+            "camera",
+            None
+        ));
+        let sub = Some(("solver", "substeps"));
+        assert!(overrides_key(
+            &o(&[" solver.substeps = 3"]),
+            "solver.substeps",
+            sub
+        ));
+        assert!(!overrides_key(
+            &o(&["solver.substeps_x=3"]),
+            "solver.substeps",
+            sub
+        ));
+        assert!(!overrides_key(
+            &o(&["solver.dt=0.01"]),
+            "solver.substeps",
+            sub
+        ));
     }
 
     #[test]
