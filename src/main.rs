@@ -270,8 +270,8 @@ fn render(
     };
     let adapter = gpu.adapter_name();
     let mut offscreen = cloth_view::Offscreen::new(gpu, size);
-    let camera = cloth_view::default_camera(&args.scene);
-    offscreen.set_fovy(cloth_view::default_fovy(&args.scene));
+    let (camera, fovy) = args.scene.start_view();
+    offscreen.set_fovy(fovy);
     let result = offscreen
         .render(&sim, &camera, options)
         .and_then(|img| img.save(png).map_err(anyhow::Error::from));

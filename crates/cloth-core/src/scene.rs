@@ -842,20 +842,17 @@ impl Scene {
                 ));
             };
             let path = path.trim();
-            let value: toml::Value = toml::from_str::<toml::Table>(&format!("v = {value}"))
-                .ok()
-                .and_then(|mut t| t.remove("v"))
-                .ok_or_else(|| {
-                    scene_error(
-                        &where_,
-                        None,
-                        path,
-                        format!(
-                            "{value:?} is not a TOML value (strings need quotes: \
+            let value: toml::Value = override_value(value).ok_or_else(|| {
+                scene_error(
+                    &where_,
+                    None,
+                    path,
+                    format!(
+                        "{value:?} is not a TOML value (strings need quotes: \
                              solver.kind=\"xpbd\")"
-                        ),
-                    )
-                })?;
+                    ),
+                )
+            })?;
             set_path(&mut doc, path, value).map_err(|m| scene_error(&where_, None, path, m))?;
             let text = toml::to_string(&doc).expect("a TOML table serialises");
             let scene: Scene = toml::from_str(&text).map_err(|e| {
@@ -1721,6 +1718,46 @@ pub fn load(name_or_path: &str, overrides: &[String]) -> Result<(Scene, String)>
     };
     let scene = Scene::from_toml_with_overrides(&source, &file, overrides)?;
     Ok((scene, source))
+}
+
+/// The value of an override `key.path=value`, read as [`Scene::from_toml_with_overrides`]
+/// reads it (TOML syntax); `None` when it is not a TOML value.
+fn override_value(value: &str) -> Option<toml::Value> {
+    toml::from_str::<toml::Table>(&format!("v = {value}"))
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+}
+
+/// Whether one of `overrides` (`key.path=value`, as [`Scene::from_toml_with_overrides`]
+/// reads them) sets the key `path` (dotted, e.g. `solver.substeps`): the key itself or one
+/// under it (`camera.eye=…` sets `camera`), or through a table that holds it
+/// (`solver={substeps=8}` sets `solver.substeps`). The viewer keeps such keys when it adjusts
+/// a scene (its substeps when the resolution changes, its `[camera]` framing).
+#[must_use]
+pub fn overrides_set(overrides: &[String], path: &str) -> bool {
+    overrides.iter().any(|item| {
+        let Some((key, value)) = item.split_once('=') else {
+            return false;
+        };
+        let key = key.trim();
+        if key
+            .strip_prefix(path)
+            .is_some_and(|rest| rest.is_empty() || rest.starts_with(['.', '[']))
+        {
+            return true;
+        }
+        let Some(inner) = path.strip_prefix(key).and_then(|r| r.strip_prefix('.')) else {
+            return false;
+        };
+        let mut value = override_value(value);
+        for field in inner.split('.') {
+            value = match value {
+                Some(toml::Value::Table(mut t)) => t.remove(field),
+                _ => None,
+            };
+        }
+        value.is_some()
+    })
 }
 
 impl Scene {

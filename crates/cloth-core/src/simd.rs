@@ -1488,36 +1488,35 @@ pub(crate) fn prefetch_w(v: &[f32]) {
     let _ = v;
 }
 
-/// Asks for every cache line of `v` to be brought into L1 (`prefetcht0`; nothing on other
-/// targets): a hint for a read that the hardware prefetcher would not see coming (a jump to
-/// another array, or lines another core has just written). It changes no result and never
-/// faults.
-#[inline(always)]
-pub(crate) fn prefetch_r(v: &[f32]) {
-    #[cfg(target_arch = "x86_64")]
-    for line in v.chunks(16) {
-        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        // SAFETY: a prefetch reads nothing architecturally and never faults; the pointer is
-        // the slice's own.
-        unsafe { _mm_prefetch::<_MM_HINT_T0>(line.as_ptr().cast()) };
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = v;
+/// The cache level a read prefetch ([`prefetch`]) brings lines into.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Level {
+    /// L1 (`prefetcht0`): read in a moment.
+    L1,
+    /// L2 (`prefetcht1`): read a little later (the next blocks' entries).
+    L2,
 }
 
-/// Asks for the cache line holding `v`'s first entry to be brought into L2 (a prefetch hint,
-/// `prefetcht1`; nothing on other targets). It changes no result and never faults.
+/// Asks for every cache line of `v` to be brought into `level` (nothing on other targets): a
+/// hint for reads the hardware prefetcher would not see coming (a jump to another array, or
+/// lines another core has just written). It changes no result and never faults.
 #[inline(always)]
-pub(crate) fn prefetch_l2(v: &[f32]) {
+pub(crate) fn prefetch(v: &[f32], level: Level) {
     #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_MM_HINT_T1, _mm_prefetch};
+    for line in v.chunks(16) {
+        use std::arch::x86_64::{_MM_HINT_T0, _MM_HINT_T1, _mm_prefetch};
+        let p = line.as_ptr().cast();
         // SAFETY: a prefetch reads nothing architecturally and never faults; the pointer is
         // the slice's own.
-        unsafe { _mm_prefetch::<_MM_HINT_T1>(v.as_ptr().cast()) };
+        unsafe {
+            match level {
+                Level::L1 => _mm_prefetch::<_MM_HINT_T0>(p),
+                Level::L2 => _mm_prefetch::<_MM_HINT_T1>(p),
+            }
+        }
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = v;
+    let _ = (v, level);
 }
 
 /// Whether `kernel` solves two blocks of chains together ([`chains::solve`] with `N = 2`, the

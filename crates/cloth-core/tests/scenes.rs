@@ -355,3 +355,36 @@ fn shear_chains_key_reaches_the_config() {
     assert_eq!(key, "solver.xpbd.shear_chains", "{message}");
     assert_eq!(line, 14, "{message}");
 }
+
+/// Which overrides set a key (what the viewer keeps when it adjusts a scene): the key, one
+/// under it, or the key inside a table value; not a key that merely starts with the same
+/// letters, nor another key of the same table.
+#[test]
+fn which_overrides_set_a_key() {
+    use cloth_core::scene::overrides_set;
+    let o = |v: &[&str]| v.iter().map(|s| (*s).to_string()).collect::<Vec<_>>();
+    assert!(overrides_set(&o(&["camera.eye=[1,2,3]"]), "camera"));
+    assert!(overrides_set(
+        &o(&["camera={eye=[1,2,3],target=[0,0,0]}"]),
+        "camera"
+    ));
+    assert!(!overrides_set(&o(&["cloth.resolution=[4,4]"]), "camera"));
+    assert!(overrides_set(
+        &o(&[" solver.substeps = 3"]),
+        "solver.substeps"
+    ));
+    assert!(!overrides_set(
+        &o(&["solver.substeps_x=3"]),
+        "solver.substeps"
+    ));
+    assert!(!overrides_set(&o(&["solver.dt=0.01"]), "solver.substeps"));
+    // Through a table value: the field itself, not a string that mentions it.
+    assert!(overrides_set(
+        &o(&[r#"solver={kind="xpbd",substeps=8}"#]),
+        "solver.substeps"
+    ));
+    assert!(!overrides_set(
+        &o(&[r#"solver={kind="substeps"}"#]),
+        "solver.substeps"
+    ));
+}

@@ -197,16 +197,13 @@ struct App {
 impl App {
     fn new(options: ViewOptions, world: World) -> Self {
         let scene = world.scene.clone();
+        let (camera, fovy) = scene.start_view();
         Self {
             panel: Panel::new(scene.clone(), world.resolution, world.integrator),
             world,
             gfx: None,
-            camera: crate::default_camera(&scene),
-            projection: Projection::new(
-                options.size[0],
-                options.size[1],
-                crate::default_fovy(&scene),
-            ),
+            camera,
+            projection: Projection::new(options.size[0], options.size[1], fovy),
             options,
             orbit: OrbitController::default(),
             fly: FlyController::default(),
@@ -294,8 +291,7 @@ impl App {
     }
 
     fn reset_view(&mut self) {
-        self.camera = crate::default_camera(&self.world.scene);
-        self.projection.fovy = crate::default_fovy(&self.world.scene);
+        (self.camera, self.projection.fovy) = self.world.scene.start_view();
     }
 
     fn release_grab(&mut self) {
@@ -466,8 +462,7 @@ impl App {
                     world.integrator = old_int;
                 } else if changed_scene {
                     self.render.floor = Some(scene.display_floor());
-                    self.camera = crate::default_camera(&scene);
-                    self.projection.fovy = crate::default_fovy(&scene);
+                    (self.camera, self.projection.fovy) = scene.start_view();
                     if let Some(g) = &self.gfx {
                         g.window.set_title(&format!("cloth — {scene}"));
                     }

@@ -38,12 +38,6 @@ pub fn default_camera(scene: &SceneKind) -> Camera {
     scene.start_view().0
 }
 
-/// The vertical field of view `scene` starts with, radians ([`SceneKind::start_view`]).
-#[must_use]
-pub fn default_fovy(scene: &SceneKind) -> f32 {
-    scene.start_view().1
-}
-
 /// The render options that suit `scene` (its display floor).
 #[must_use]
 pub fn default_options(scene: &SceneKind) -> RenderOptions {

@@ -162,7 +162,7 @@ impl Offscreen {
     }
 
     /// Sets the vertical field of view of the renders that follow, radians (e.g.
-    /// [`crate::default_fovy`] of the scene).
+    /// the field of view of [`crate::SceneKind::start_view`]).
     pub fn set_fovy(&mut self, fovy: f32) {
         self.fovy = fovy;
     }

@@ -16,19 +16,6 @@ pub struct SceneKind {
     substeps_set: bool,
 }
 
-/// Whether one of `overrides` (`KEY=VALUE`) sets `key` itself, a key under it
-/// (`key.…`, `key[…]`), or, given as a whole table at `parent`, its field `field`.
-fn overrides_key(overrides: &[String], key: &str, parent: Option<(&str, &str)>) -> bool {
-    overrides.iter().any(|o| {
-        let (k, v) = o.split_once('=').unwrap_or((o, ""));
-        let k = k.trim();
-        let under = k
-            .strip_prefix(key)
-            .is_some_and(|rest| rest.is_empty() || rest.starts_with(['.', '[']));
-        under || parent.is_some_and(|(table, field)| k == table && v.contains(field))
-    })
-}
-
 impl SceneKind {
     /// Loads a built-in scene by name, or a TOML scene file, with `--set` overrides.
     ///
@@ -39,8 +26,8 @@ impl SceneKind {
         Ok(Self {
             name: name_or_path.to_string(),
             scene,
-            camera_set: overrides_key(overrides, "camera", None),
-            substeps_set: overrides_key(overrides, "solver.substeps", Some(("solver", "substeps"))),
+            camera_set: scene::overrides_set(overrides, "camera"),
+            substeps_set: scene::overrides_set(overrides, "solver.substeps"),
         })
     }
 
@@ -284,38 +271,6 @@ mod tests {
         let (cam, fovy) = fold.start_view();
         assert!(close(cam.eye, Vec3::from(c.eye)) && close(cam.target, Vec3::from(c.target)));
         assert!((fovy - 45f32.to_radians()).abs() < 1e-7);
-    }
-
-    #[test]
-    fn which_overrides_set_a_key() {
-        let o = |v: &[&str]| v.iter().map(|s| (*s).to_string()).collect::<Vec<_>>();
-        assert!(overrides_key(&o(&["camera.eye=[1,2,3]"]), "camera", None));
-        assert!(overrides_key(
-            &o(&["camera={eye=[1,2,3],target=[0,0,0]}"]),
-            "camera",
-            None
-        ));
-        assert!(!overrides_key(
-            &o(&["cloth.resolution=[4,4]"]),
-            "camera",
-            None
-        ));
-        let sub = Some(("solver", "substeps"));
-        assert!(overrides_key(
-            &o(&[" solver.substeps = 3"]),
-            "solver.substeps",
-            sub
-        ));
-        assert!(!overrides_key(
-            &o(&["solver.substeps_x=3"]),
-            "solver.substeps",
-            sub
-        ));
-        assert!(!overrides_key(
-            &o(&["solver.dt=0.01"]),
-            "solver.substeps",
-            sub
-        ));
     }
 
     #[test]

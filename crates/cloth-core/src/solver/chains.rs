@@ -380,7 +380,7 @@ pub(crate) fn solve_lanes<const N: usize>(
 }
 
 /// The grid entries the next blocks of a direction will gather, fetched into L2 ahead of
-/// their gather ([`crate::simd::prefetch_l2`]) during this block's elimination, one entry
+/// their gather ([`crate::simd::prefetch`] into L2) during this block's elimination, one entry
 /// `k` of every chain per step. Only a hint: it changes no result.
 #[derive(Debug)]
 pub(crate) struct Ahead<'a> {
@@ -401,9 +401,7 @@ impl Ahead<'_> {
             let Some(row) = field.get(at..at + self.span) else {
                 continue;
             };
-            for line in row.chunks(16) {
-                crate::simd::prefetch_l2(line);
-            }
+            crate::simd::prefetch(row, crate::simd::Level::L2);
         }
     }
 }
@@ -628,7 +626,8 @@ pub(crate) fn handoff<const L: usize>(
             // and they are a block's stride apart, which the hardware prefetcher does not
             // follow (the transposes' share of a 2-thread 512² drape: 12 → 7 %).
             if let Some(ahead) = from.get(((b + 2) * FIELDS + f) * from_size + block * L * L..) {
-                crate::simd::prefetch_r(&ahead[..ahead.len().min(lanes * L)]);
+                let ahead = &ahead[..ahead.len().min(lanes * L)];
+                crate::simd::prefetch(ahead, crate::simd::Level::L1);
             }
             if L == 16 && lanes == L && dst.len() == L * L {
                 crate::simd::transpose16(kernel, src, L, dst, L);
@@ -793,6 +792,18 @@ pub(crate) fn transpose16(src: &[f32], src_stride: usize, dst: &mut [f32], dst_s
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Two blocks are solved interleaved up to chains of 291 particles (the docs' and the
+    /// long-chain bit test's threshold: the 320-particle strip takes single blocks, 256²
+    /// pairs). Exact arithmetic on the sizes, no tolerance.
+    #[test]
+    fn pairs_stop_past_291_particles() {
+        assert!(pair_fits(stride(256)));
+        assert!(pair_fits(stride(291)));
+        assert!(!pair_fits(stride(292)));
+        assert!(!pair_fits(stride(320)));
+        assert!(!pair_fits(stride(512)));
+    }
 
     /// Solves one chain at one lane (`iterations` Newton iterations, multipliers kept) from
     /// positions `x`, start positions `x0`, inverse masses `w` and rest lengths `rest` (entry
