@@ -1,0 +1,163 @@
+#!/usr/bin/env python3
+"""A one-chain model of the drape's failure at few substeps (issue 7, thirtieth round).
+
+A rope of N particles, rest spacing 1.2/(N - 1) m, each of mass 0.2·spacing² kg (a warp
+chain's strip of the drape's cloth, 0.2 kg/m²), springs of stiffness 400 N/m as XPBD
+constraints, dropped from 0.55 m across a cylinder of radius 0.3 m + 0.008 m thickness (the
+drape's ball, as a cylinder along z), with the contact pass and position-level friction of
+`cloth-core` (static 0.6, kinetic 0.5) and the scaled global damping of
+`scripts/realtime-series.sh`. Each substep: predict, then ROUNDS rounds of NEWTON iterations
+of the chain solve (a contact pass before each round after the first), then the contact pass
+and the velocities, as the grid path's sweep with `xpbd.chains` (without the other springs
+and the strain limit). Prints the largest strain over the second half of the run.
+
+Methods of the chain solve:
+  dual     XPBD's solve of the chain's multipliers (tridiagonal, Gauss-Newton: the springs'
+           directions linearised, their sideways stiffness left out), as `chains::solve`;
+  contact  the same with particles in contact moving in the cylinder's tangent plane
+           (inverse mass w(I - c cᵀ) in the system and the back substitution);
+  kkt      Newton on XPBD's (x, λ) system with each spring's Hessian, the geometric
+           stiffness (clamped at zero for compressed springs), unknowns interleaved in one
+           banded solve.
+
+Needs numpy and scipy (not the project's: pip install numpy scipy).
+Usage: rope-model.py METHOD N ROUNDS NEWTON SUBSTEPS...
+e.g.   rope-model.py dual 512 2 2 6 8 10
+"""
+import sys
+
+import numpy as np
+from scipy.linalg import solve_banded
+
+RHO, K, RC, MU = 0.2, 400.0, 0.308, (0.6, 0.5)
+
+
+def contact(x, x0):
+    r = np.hypot(x[:, 0], x[:, 1])
+    inside = r < RC
+    if not inside.any():
+        return x
+    nrm = np.zeros_like(x)
+    nrm[:, 0], nrm[:, 1] = x[:, 0] / r, x[:, 1] / r
+    push = np.where(inside, RC - r, 0.0)
+    x = x + push[:, None] * nrm
+    rel = x - x0
+    t = rel - (rel * nrm).sum(1)[:, None] * nrm
+    tl = np.linalg.norm(t, axis=1)
+    s = np.where(tl <= MU[0] * push, 1.0, np.minimum(MU[1] * push / np.maximum(tl, 1e-30), 1.0))
+    return x - np.where(inside, s, 0.0)[:, None] * t
+
+
+def tridiagonal(diag, off, rhs):
+    ab = np.zeros((3, len(diag)))
+    ab[0, 1:], ab[1], ab[2, :-1] = off, diag, off
+    return solve_banded((1, 1), ab, rhs)
+
+
+def dual(x, lam, xt, rest, m, alpha, in_contact=False):
+    w = 1.0 / m
+    d = x[1:] - x[:-1]
+    ln = np.linalg.norm(d, axis=1)
+    u = d / ln[:, None]
+    c = np.zeros_like(x)
+    if in_contact:
+        r = np.hypot(x[:, 0], x[:, 1])
+        c[:, 0], c[:, 1] = x[:, 0] / r, x[:, 1] / r
+        c *= (r < RC)[:, None]
+    ca, cb = (c[:-1] * u).sum(1), (c[1:] * u).sum(1)
+    diag = w * (1 - ca**2) + w * (1 - cb**2) + alpha
+    ck = c[1:-1]
+    off = -w * ((u[:-1] * u[1:]).sum(1) - (ck * u[:-1]).sum(1) * (ck * u[1:]).sum(1))
+    dl = tridiagonal(diag, off, -(ln - rest) - alpha * lam)
+    f = np.zeros_like(x)
+    f[:-1] -= dl[:, None] * u
+    f[1:] += dl[:, None] * u
+    f -= (f * c).sum(1)[:, None] * c
+    return x + w * f, lam + dl
+
+
+def kkt(x, lam, xt, rest, m, alpha):
+    n = len(x)
+    d = x[1:] - x[:-1]
+    ln = np.linalg.norm(d, axis=1)
+    u = d / ln[:, None]
+    g = m * (x - xt)
+    g[1:] -= lam[:, None] * u
+    g[:-1] += lam[:, None] * u
+    hres = (ln - rest) + alpha * lam
+    gk = np.maximum(-lam / ln, 0.0)
+    G = gk[:, None, None] * (np.eye(3)[None] - u[:, :, None] * u[:, None, :])
+    size, bw = 4 * n - 1, 6
+    ab = np.zeros((2 * bw + 1, size))
+
+    def put(rows, cols, vals):
+        np.add.at(ab, (bw + rows - cols, cols), vals)
+
+    j, k = np.arange(n), np.arange(n - 1)
+    for p in range(3):
+        put(4 * j + p, 4 * j + p, np.full(n, m))
+        for q in range(3):
+            put(4 * k + p, 4 * k + q, G[:, p, q])
+            put(4 * k + 4 + p, 4 * k + 4 + q, G[:, p, q])
+            put(4 * k + p, 4 * k + 4 + q, -G[:, p, q])
+            put(4 * k + 4 + p, 4 * k + q, -G[:, p, q])
+        put(4 * k + 4 + p, 4 * k + 3, -u[:, p])
+        put(4 * k + p, 4 * k + 3, u[:, p])
+        put(4 * k + 3, 4 * k + 4 + p, u[:, p])
+        put(4 * k + 3, 4 * k + p, -u[:, p])
+    put(4 * k + 3, 4 * k + 3, np.full(n - 1, alpha))
+    rhs = np.zeros(size)
+    for p in range(3):
+        rhs[4 * j + p] = -g[:, p]
+    rhs[4 * k + 3] = -hres
+    sol = solve_banded((bw, bw), ab, rhs)
+    dx = np.stack([sol[4 * j + p] for p in range(3)], axis=1)
+    return x + dx, lam + sol[4 * k + 3]
+
+
+def run(method, n, rounds, newton, substeps, seconds=3.0, seed=1):
+    rng = np.random.default_rng(seed)
+    rest = 1.2 / (n - 1)
+    m = RHO * rest * rest
+    h = (1 / 60) / substeps
+    alpha = 1.0 / (K * h * h)
+    damp = 2e-4 * (48 / n) ** 2
+    x = np.zeros((n, 3))
+    x[:, 0], x[:, 1] = np.linspace(-0.6, 0.6, n), 0.55
+    x[:, 2] = 1e-4 * rng.standard_normal(n)
+    v = np.zeros((n, 3))
+    g = np.array([0.0, -9.81, 0.0])
+    solve = {
+        "dual": dual,
+        "contact": lambda *a: dual(*a, in_contact=True),
+        "kkt": kkt,
+    }[method]
+    frames = int(round(seconds * 60))
+    late = 0.0
+    for frame in range(frames):
+        for _ in range(substeps):
+            x0 = x.copy()
+            v = v + h * g - (h * damp / m) * v
+            xt = x + h * v
+            x, lam = xt.copy(), np.zeros(n - 1)
+            for r in range(rounds):
+                if r > 0:
+                    x = contact(x, x0)
+                for _ in range(newton):
+                    x, lam = solve(x, lam, xt, rest, m, alpha)
+            x = contact(x, x0)
+            v = (x - x0) / h
+            if not np.isfinite(x).all() or np.abs(v).max() > 1e3:
+                return float("inf")
+        if frame >= frames // 2:
+            late = max(late, (np.linalg.norm(x[1:] - x[:-1], axis=1) / rest - 1).max())
+    return late
+
+
+if __name__ == "__main__":
+    if len(sys.argv) < 6:
+        sys.exit(__doc__)
+    method, n, rounds, newton = sys.argv[1], *map(int, sys.argv[2:5])
+    for s in map(int, sys.argv[5:]):
+        late = run(method, n, rounds, newton, s)
+        print(f"{method} N={n} {s} x {rounds} x {newton}: late max {100 * late:.2f} %", flush=True)
