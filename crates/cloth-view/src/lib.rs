@@ -31,13 +31,6 @@ pub use offscreen::Offscreen;
 pub use renderer::{RenderOptions, Renderer};
 pub use scene::SceneKind;
 
-/// The camera that frames `scene` for the default window and the PNG renders
-/// ([`SceneKind::start_view`]).
-#[must_use]
-pub fn default_camera(scene: &SceneKind) -> Camera {
-    scene.start_view().0
-}
-
 /// The render options that suit `scene` (its display floor).
 #[must_use]
 pub fn default_options(scene: &SceneKind) -> RenderOptions {

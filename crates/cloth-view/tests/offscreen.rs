@@ -72,7 +72,8 @@ fn the_drape_is_where_the_camera_says_and_matches_the_reference() {
     let Some(gpu) = gpu() else { return };
     let sim = landed_drape();
     let mut off = Offscreen::new(gpu, SIZE);
-    let camera = cloth_view::default_camera(&SceneKind::drape());
+    let (camera, fovy) = SceneKind::drape().start_view();
+    off.set_fovy(fovy);
     let projection = off.projection();
     let img = off
         .render(
@@ -163,7 +164,8 @@ fn lit_and_unlit_sides_of_the_ball_differ() {
         panic!("the drape's first collider is its ball");
     };
     let mut off = Offscreen::new(gpu, SIZE);
-    let camera = cloth_view::default_camera(&SceneKind::drape());
+    let (camera, fovy) = SceneKind::drape().start_view();
+    off.set_fovy(fovy);
     let projection = off.projection();
     let options = cloth_view::RenderOptions {
         surface: false,

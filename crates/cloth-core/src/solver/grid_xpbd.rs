@@ -473,12 +473,15 @@ impl XpbdGrid {
                     };
                     let (up, down) = (cells(true), cells(false));
                     let (m_row, w_row) = (&mass[r * cols..][..cols], &w[r * cols..][..cols]);
-                    let (x_row, x_next) = row_and_next(x, i, cols);
-                    let (y_row, y_next) = row_and_next(y, i, cols);
-                    let (z_row, z_next) = row_and_next(z, i, cols);
-                    let (x0_row, x0_next) = row_and_next(x0, i, cols);
-                    let (y0_row, y0_next) = row_and_next(y0, i, cols);
-                    let (z0_row, z0_next) = row_and_next(z0, i, cols);
+                    let [
+                        (x_row, x_next),
+                        (y_row, y_next),
+                        (z_row, z_next),
+                        (x0_row, x0_next),
+                        (y0_row, y0_next),
+                        (z0_row, z0_next),
+                    ] = [&mut *x, &mut *y, &mut *z, &mut *x0, &mut *y0, &mut *z0]
+                        .map(|a| row_and_next(a, i, cols));
                     let lanes = [
                         (
                             x_row,
