@@ -20,9 +20,21 @@ Methods of the chain solve:
            stiffness (clamped at zero for compressed springs), unknowns interleaved in one
            banded solve.
 
+Two diagnostics of the landing (thirty-first round):
+  front    the run with the dual solve, printing also how many particles the contact front
+           (the outermost particle on the cylinder) passes per substep while it goes from 3
+           to 15 cm from the middle;
+  iterate  the chain problem of the first substep of frame FRAME of a run at ROUNDS x NEWTON
+           (dual solve), taken alone (no contact) and iterated 20 times from the predicted
+           positions with the dual and with the kkt method: the largest strain after each.
+
 Needs numpy and scipy (not the project's: pip install numpy scipy).
 Usage: rope-model.py METHOD N ROUNDS NEWTON SUBSTEPS...
+       rope-model.py front N ROUNDS NEWTON SUBSTEPS...
+       rope-model.py iterate N ROUNDS NEWTON SUBSTEPS FRAME
 e.g.   rope-model.py dual 512 2 2 6 8 10
+       rope-model.py front 512 2 2 5 10
+       rope-model.py iterate 512 2 2 5 15
 """
 import sys
 
@@ -115,7 +127,14 @@ def kkt(x, lam, xt, rest, m, alpha):
     return x + dx, lam + sol[4 * k + 3]
 
 
-def run(method, n, rounds, newton, substeps, seconds=3.0, seed=1):
+def strain(x, rest):
+    return np.linalg.norm(x[1:] - x[:-1], axis=1) / rest - 1
+
+
+def run(method, n, rounds, newton, substeps, seconds=3.0, seed=1, front=None, stop=None):
+    """The largest strain over the run's second half. `front`, a list, gets the front's
+    distance from the middle (m) after every substep; `stop`, a frame, ends the run at that
+    frame's first substep and returns (start positions, predicted positions, rest, mass, h)."""
     rng = np.random.default_rng(seed)
     rest = 1.2 / (n - 1)
     m = RHO * rest * rest
@@ -139,6 +158,8 @@ def run(method, n, rounds, newton, substeps, seconds=3.0, seed=1):
             x0 = x.copy()
             v = v + h * g - (h * damp / m) * v
             xt = x + h * v
+            if stop == frame:
+                return x0, xt, rest, m, h
             x, lam = xt.copy(), np.zeros(n - 1)
             for r in range(rounds):
                 if r > 0:
@@ -149,15 +170,44 @@ def run(method, n, rounds, newton, substeps, seconds=3.0, seed=1):
             v = (x - x0) / h
             if not np.isfinite(x).all() or np.abs(v).max() > 1e3:
                 return float("inf")
+            if front is not None:
+                on = np.flatnonzero(np.hypot(x[:, 0], x[:, 1]) < RC + 1e-7)
+                front.append((on.max() - (n - 1) / 2) * rest if len(on) else 0.0)
         if frame >= frames // 2:
-            late = max(late, (np.linalg.norm(x[1:] - x[:-1], axis=1) / rest - 1).max())
+            late = max(late, strain(x, rest).max())
     return late
+
+
+def front_advance(front, rest, a=0.03, b=0.15):
+    """Particles the front passes per substep while it goes from a to b metres out."""
+    f = np.array(front)
+    i, j = int(np.argmax(f > a)), int(np.argmax(f > b))
+    return (f[j] - f[i]) / max(j - i, 1) / rest
+
+
+def iterate(n, rounds, newton, substeps, frame):
+    x0, xt, rest, m, h = run("dual", n, rounds, newton, substeps, stop=frame)
+    alpha = 1.0 / (K * h * h)
+    print(f"start of frame {frame}: largest strain {100 * strain(x0, rest).max():.1f} %")
+    for name, solve in (("dual", dual), ("kkt", kkt)):
+        x, lam, out = xt.copy(), np.zeros(n - 1), []
+        for _ in range(20):
+            x, lam = solve(x, lam, xt, rest, m, alpha)
+            out.append(f"{100 * strain(x, rest).max():.1f}")
+        print(f"{name:5s}", " ".join(out), flush=True)
 
 
 if __name__ == "__main__":
     if len(sys.argv) < 6:
         sys.exit(__doc__)
     method, n, rounds, newton = sys.argv[1], *map(int, sys.argv[2:5])
+    if method == "iterate":
+        iterate(n, rounds, newton, *map(int, sys.argv[5:7]))
+        sys.exit()
     for s in map(int, sys.argv[5:]):
-        late = run(method, n, rounds, newton, s)
-        print(f"{method} N={n} {s} x {rounds} x {newton}: late max {100 * late:.2f} %", flush=True)
+        front = [] if method == "front" else None
+        late = run("dual" if front is not None else method, n, rounds, newton, s, front=front)
+        line = f"{method} N={n} {s} x {rounds} x {newton}: late max {100 * late:.2f} %"
+        if front is not None:
+            line += f", front {front_advance(front, 1.2 / (n - 1)):.2f} particles per substep"
+        print(line, flush=True)
