@@ -10,6 +10,7 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 
 mod export;
+mod out;
 mod sim_cmd;
 use cloth_core::{Integrator, Simulation};
 use cloth_view::SceneKind;
@@ -153,7 +154,18 @@ fn parse_size(s: &str) -> Result<[u32; 2], String> {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let code = run(Cli::parse());
+    // A closed pipe (`cloth scenes | head`) is not an error; any other failed write is.
+    match out::status() {
+        Some(e) => {
+            eprintln!("error: cannot write to standard output: {e}");
+            ExitCode::FAILURE
+        }
+        None => code,
+    }
+}
+
+fn run(cli: Cli) -> ExitCode {
     let command = cli.command.unwrap_or(Command::View {
         scene: SceneArgs {
             scene: "drape".into(),
@@ -277,7 +289,7 @@ fn render(
         .and_then(|img| img.save(png).map_err(anyhow::Error::from));
     match result {
         Ok(()) => {
-            println!(
+            out::outln!(
                 "wrote {} ({}x{}, {} after {frames} frames, t = {:.3} s; {}x MSAA on {adapter})",
                 png.display(),
                 size[0],

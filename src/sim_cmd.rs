@@ -7,6 +7,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
+use crate::out::{out, outln};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use cloth_core::diagnostics::explicit_stability_limit;
@@ -77,7 +78,7 @@ pub struct SimArgs {
         long = "set",
         value_name = "KEY=VALUE",
         help = "Override a scene key, in TOML syntax: --set cloth.resolution=[64,64] \
-                --set solver.kind=\"xpbd\" (repeatable)"
+                --set solver.kind=xpbd (a bare word is a string) (repeatable)"
     )]
     pub set: Vec<String>,
     #[arg(
@@ -185,7 +186,7 @@ pub fn scenes(args: &ScenesArgs) -> ExitCode {
     match &args.print {
         Some(name) => match scene::builtin_source(name) {
             Some(src) => {
-                print!("{src}");
+                out!("{src}");
                 ExitCode::SUCCESS
             }
             None => {
@@ -200,7 +201,7 @@ pub fn scenes(args: &ScenesArgs) -> ExitCode {
         None => {
             for (name, _) in BUILTIN {
                 let s = scene::builtin(name).expect("built-in scenes are valid");
-                println!("{name:<16} {}", s.description);
+                outln!("{name:<16} {}", s.description);
             }
             ExitCode::SUCCESS
         }
@@ -249,8 +250,8 @@ pub fn check(args: &CheckArgs) -> ExitCode {
     let cfg = sim.config();
     let min_mass = sim.particles().min_mass();
     let limit = explicit_stability_limit(cfg, min_mass);
-    println!("{}", summary(&scene));
-    println!(
+    outln!("{}", summary(&scene));
+    outln!(
         "dt={} s substeps={} (substep {:.3e} s); estimated stable substep for the explicit integrators: {:.3e} s ({} substeps per step)",
         cfg.dt,
         cfg.substeps,
@@ -258,7 +259,7 @@ pub fn check(args: &CheckArgs) -> ExitCode {
         limit,
         (cfg.dt / limit).ceil()
     );
-    println!(
+    outln!(
         "colliders={} duration={} s: ok",
         sim.colliders().len(),
         scene.duration
@@ -555,14 +556,14 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         let flag = interrupted.clone();
         let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
     }
-    println!(
+    outln!(
         "{} dt={} s substeps={}",
         summary(&scene),
         cfg.dt,
         cfg.substeps
     );
     if args.table_every > 0 {
-        println!(
+        outln!(
             "{:>6} {:>8} {:>12} {:>12} {:>10} {:>10} {:>10} {:>9} {:>8}",
             "frame",
             "t [s]",
@@ -657,7 +658,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
             );
             match &progress {
                 Some(bar) => bar.println(line),
-                None => println!("{line}"),
+                None => outln!("{line}"),
             }
         }
         if frame % args.every == 0
@@ -782,7 +783,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
             .with_context(|| format!("writing the report {}", path.display()))?;
     }
     let figure = |x: Option<f64>, text: &dyn Fn(f64) -> String| x.map_or("n/a".into(), text);
-    println!(
+    outln!(
         "done: {} frames, status {status_line}, {:.3} s stepping, {} ms/frame, {} particle-substeps/s (median frame {}; {} threads, kernel {})",
         records.len(),
         stepping,
@@ -797,7 +798,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
     );
     for (name, q) in &strains {
         if let Some(q) = q {
-            println!(
+            outln!(
                 "{name} strain at the end: median {:.3}%, p99 {:.3}%, p99.9 {:.3}%, max {:.3}%",
                 100.0 * q[0],
                 100.0 * q[1],
@@ -807,7 +808,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         }
     }
     if cfg.self_collision.is_some() {
-        println!(
+        outln!(
             "self-contact: at most {max_self_intersections} intersecting triangle pairs in a frame"
         );
     }

@@ -248,3 +248,63 @@ fn no_display_is_one_clear_sentence_not_a_panic() {
     assert!(stderr.contains("xvfb-run"), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
 }
+
+/// Output into a closed pipe (`cloth scenes | head -1`) is not a panic: the output is dropped,
+/// the command finishes (a `sim` still writes its report) and exits 0. A pipe whose reading end
+/// is closed before the command starts makes its first write fail, every time.
+#[test]
+fn a_closed_pipe_is_not_a_panic() {
+    let report = std::env::temp_dir().join(format!("cloth-pipe-{}.json", std::process::id()));
+    let _ = std::fs::remove_file(&report);
+    let runs: [&[&str]; 3] = [
+        &["scenes"],
+        &["scenes", "--print", "drape"],
+        &[
+            "sim",
+            "hanging",
+            "--frames",
+            "3",
+            "--report",
+            report.to_str().unwrap(),
+        ],
+    ];
+    for args in runs {
+        let (reader, writer) = std::io::pipe().expect("pipe");
+        drop(reader);
+        let out = Command::new(env!("CARGO_BIN_EXE_cloth"))
+            .args(args)
+            .stdout(writer)
+            .output()
+            .expect("run cloth");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+    let text = std::fs::read_to_string(&report).expect("the report is written");
+    assert!(text.contains("\"frames\""), "{text}");
+    let _ = std::fs::remove_file(&report);
+}
+
+/// Any other failed write to standard output (a full disk: Linux's `/dev/full`) is reported in
+/// one line, with exit status 1, not a panic.
+#[test]
+#[cfg(target_os = "linux")]
+fn a_failed_write_to_stdout_is_one_error_line() {
+    let full = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/full")
+        .expect("/dev/full");
+    let out = Command::new(env!("CARGO_BIN_EXE_cloth"))
+        .arg("scenes")
+        .stdout(full)
+        .output()
+        .expect("run cloth");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("cannot write to standard output"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+}

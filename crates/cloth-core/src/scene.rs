@@ -817,8 +817,9 @@ impl Scene {
     }
 
     /// Applies `key.path=value` overrides (the value in TOML syntax, e.g. `[64, 64]`, `0.5`,
-    /// `"xpbd"`) to a scene source and parses the result. Each override is validated exactly as
-    /// the file is; errors name the override.
+    /// `"xpbd"`, or a bare word such as `xpbd`, taken as a string) to a scene source and
+    /// parses the result. Each override is validated exactly as the file is; errors name the
+    /// override.
     pub fn from_toml_with_overrides(
         source: &str,
         file: &str,
@@ -848,8 +849,8 @@ impl Scene {
                     None,
                     path,
                     format!(
-                        "{value:?} is not a TOML value (strings need quotes: \
-                             solver.kind=\"xpbd\")"
+                        "{value:?} is not a TOML value (a string other than a bare word \
+                             needs quotes: name=\"my drape\")"
                     ),
                 )
             })?;
@@ -1726,6 +1727,18 @@ fn override_value(value: &str) -> Option<toml::Value> {
     toml::from_str::<toml::Table>(&format!("v = {value}"))
         .ok()
         .and_then(|mut t| t.remove("v"))
+        .or_else(|| bare_word(value).map(|w| toml::Value::String(w.to_owned())))
+}
+
+/// A value that is not TOML but a bare word (`xpbd`, `symplectic-euler`, `auto`: letters,
+/// digits, `_`, `-` and `.`, starting with a letter) is taken as that string, since a shell
+/// strips the quotes of `--set solver.kind="xpbd"`.
+fn bare_word(value: &str) -> Option<&str> {
+    let word = value.trim();
+    let mut chars = word.chars();
+    (chars.next()?.is_ascii_alphabetic()
+        && chars.all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.')))
+    .then_some(word)
 }
 
 /// Whether one of `overrides` (`key.path=value`, as [`Scene::from_toml_with_overrides`]

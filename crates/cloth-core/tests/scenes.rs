@@ -264,7 +264,8 @@ fn empty_binary_and_missing_files_are_errors() {
     );
 }
 
-/// `--set key.path=value` overrides are applied and validated like the file.
+/// `--set key.path=value` overrides are applied and validated like the file; a bare word is a
+/// string.
 #[test]
 fn overrides_apply_and_are_validated() {
     let sets = |s: &[&str]| s.iter().map(|x| (*x).to_string()).collect::<Vec<_>>();
@@ -280,9 +281,13 @@ fn overrides_apply_and_are_validated() {
     assert_eq!(scene.cloth.resolution, [10, 12]);
     assert_eq!(scene.solver.kind, "xpbd");
     assert_eq!(scene.colliders[0].radius, Some(0.25));
+    // A bare word is a string: what a shell leaves of `solver.kind="symplectic-euler"`.
+    let (bare, _) = scene::load("drape", &sets(&["solver.kind=symplectic-euler"])).expect("bare");
+    assert_eq!(bare.solver.kind, "symplectic-euler");
     for (bad, needle) in [
         ("cloth.resolution=[1, 8]", "2 ..= 8192"),
-        ("solver.kind=xpbd", "strings need quotes"),
+        ("name=my drape", "needs quotes"),
+        ("solver.kind=xpdb", "solver.kind"),
         ("solver.knd=\"xpbd\"", "did you mean `kind`?"),
         ("colliders[7].radius=1.0", "out of range"),
         ("no-equals-sign", "key.path=value"),
