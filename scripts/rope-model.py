@@ -18,7 +18,11 @@ Methods of the chain solve:
            (inverse mass w(I - c cᵀ) in the system and the back substitution);
   kkt      Newton on XPBD's (x, λ) system with each spring's Hessian, the geometric
            stiffness (clamped at zero for compressed springs), unknowns interleaved in one
-           banded solve.
+           banded solve;
+  geo:S    the dual solve with the geometric stiffness lumped per particle (thirty-first
+           round): each particle's inverse mass becomes the 3x3 (m I + S Σ g_k (I - u_k u_kᵀ))⁻¹
+           over its two springs, g_k = max(-λ_k, 0)/|d_k|, so the system stays tridiagonal
+           (e.g. geo:4).
 
 Two diagnostics of the landing (thirty-first round):
   front    the run with the dual solve, printing also how many particles the contact front
@@ -88,6 +92,28 @@ def dual(x, lam, xt, rest, m, alpha, in_contact=False):
     return x + w * f, lam + dl
 
 
+def geo(x, lam, xt, rest, m, alpha, scale):
+    n = len(x)
+    d = x[1:] - x[:-1]
+    ln = np.linalg.norm(d, axis=1)
+    u = d / ln[:, None]
+    gk = scale * np.maximum(-lam / ln, 0.0)
+    proj = np.eye(3)[None] - u[:, :, None] * u[:, None, :]
+    h = np.repeat((m * np.eye(3))[None], n, 0)
+    h[:-1] += gk[:, None, None] * proj
+    h[1:] += gk[:, None, None] * proj
+    wi = np.linalg.inv(h)
+    wu_a = np.einsum("kij,kj->ki", wi[:-1], u)
+    wu_b = np.einsum("kij,kj->ki", wi[1:], u)
+    diag = (u * wu_a).sum(1) + (u * wu_b).sum(1) + alpha
+    off = -np.einsum("ki,kij,kj->k", u[:-1], wi[1:-1], u[1:])
+    dl = tridiagonal(diag, off, -(ln - rest) - alpha * lam)
+    f = np.zeros_like(x)
+    f[:-1] -= dl[:, None] * u
+    f[1:] += dl[:, None] * u
+    return x + np.einsum("kij,kj->ki", wi, f), lam + dl
+
+
 def kkt(x, lam, xt, rest, m, alpha):
     n = len(x)
     d = x[1:] - x[:-1]
@@ -146,11 +172,15 @@ def run(method, n, rounds, newton, substeps, seconds=3.0, seed=1, front=None, st
     x[:, 2] = 1e-4 * rng.standard_normal(n)
     v = np.zeros((n, 3))
     g = np.array([0.0, -9.81, 0.0])
-    solve = {
-        "dual": dual,
-        "contact": lambda *a: dual(*a, in_contact=True),
-        "kkt": kkt,
-    }[method]
+    if method.startswith("geo:"):
+        scale = float(method[4:])
+        solve = lambda *a: geo(*a, scale)  # noqa: E731
+    else:
+        solve = {
+            "dual": dual,
+            "contact": lambda *a: dual(*a, in_contact=True),
+            "kkt": kkt,
+        }[method]
     frames = int(round(seconds * 60))
     late = 0.0
     for frame in range(frames):
