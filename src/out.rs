@@ -1,7 +1,7 @@
 //! Standard output that never panics. `println!` panics when stdout is closed (`cloth scenes |
-//! head -3`); [`outln!`] and [`out!`] write through [`write`] instead. A closed pipe is not an
+//! head -3`); [`outln!`] and [`out!`] write through [`write()`] instead. A closed pipe is not an
 //! error: further output is dropped and the command goes on (a `cloth sim` still writes its
-//! frames and report). Any other write error is kept and reported by [`status`] at exit.
+//! frames and report). Any other write error is kept and reported by [`status()`] at exit.
 
 use std::fmt;
 use std::io::{self, Write};
@@ -36,14 +36,14 @@ pub fn status() -> Option<String> {
         .clone()
 }
 
-/// `print!` through [`write`].
+/// `print!` through [`write()`].
 macro_rules! out {
     ($($arg:tt)*) => {
         $crate::out::write(format_args!($($arg)*))
     };
 }
 
-/// `println!` through [`write`].
+/// `println!` through [`write()`].
 macro_rules! outln {
     () => {
         $crate::out::write(format_args!("\n"))
