@@ -535,13 +535,15 @@ impl App {
             let n = self.world.stepper.steps(elapsed);
             let t0 = Instant::now();
             let grab = self.grab_target();
+            let mut done = 0;
             for _ in 0..n {
                 if !self.world.step(grab) {
                     break;
                 }
+                done += 1;
             }
             let ms = 1e3 * t0.elapsed().as_secs_f32();
-            self.world.sim_ms = 0.9 * self.world.sim_ms + 0.1 * ms;
+            self.world.sim_ms = step_ms(self.world.sim_ms, ms, done);
         }
         if self.mode == CameraMode::Fly {
             self.fly
@@ -784,5 +786,35 @@ impl ApplicationHandler for App {
         if let Some(gfx) = &self.gfx {
             gfx.window.request_redraw();
         }
+    }
+}
+
+/// The status line's simulation time: `elapsed_ms` spent on `steps` steps folded into the
+/// smoothed `previous`, per step of the scene's dt (a "frame" as `cloth sim` counts and reports
+/// them), not per drawn frame, which runs as many steps as are due: none (kept as it was) or
+/// several (divided among them). The first sample is taken as it is.
+fn step_ms(previous: f32, elapsed_ms: f32, steps: u32) -> f32 {
+    if steps == 0 {
+        return previous;
+    }
+    let ms = elapsed_ms / steps as f32;
+    if previous == 0.0 {
+        ms
+    } else {
+        0.9 * previous + 0.1 * ms
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// The status line's "sim ms/frame" is per simulation step (as `cloth sim` reports it):
+    /// a drawn frame that ran four steps in 40 ms shows 10 ms, one that ran none keeps it.
+    #[test]
+    fn status_time_is_per_simulation_step() {
+        let first = super::step_ms(0.0, 40.0, 4);
+        assert_eq!(first, 10.0);
+        assert_eq!(super::step_ms(first, 3.0, 0), first);
+        let next = super::step_ms(first, 60.0, 3);
+        assert!((next - (0.9 * 10.0 + 0.1 * 20.0)).abs() < 1e-6, "{next}");
     }
 }

@@ -51,7 +51,8 @@ pub enum Action {
 pub struct Status {
     /// Frames per second (smoothed).
     pub fps: f32,
-    /// Wall time spent stepping per frame, ms (smoothed).
+    /// Wall time of one simulation step of the scene's dt (a frame as `cloth sim` counts and
+    /// reports them; a drawn frame runs as many steps as are due), ms (smoothed).
     pub sim_ms: f32,
     /// Simulated time, s.
     pub time: f64,
