@@ -10,7 +10,7 @@ use std::time::Instant;
 use crate::out::{out, outln};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use cloth_core::diagnostics::explicit_stability_limit;
+use cloth_core::diagnostics::explicit_stability_limit_of;
 use cloth_core::scene::{self, BUILTIN, Scene};
 use cloth_core::{ClothError, SimState, SpringClass, StepStats};
 use serde::{Deserialize, Serialize};
@@ -248,8 +248,7 @@ pub fn check(args: &CheckArgs) -> ExitCode {
         }
     };
     let cfg = sim.config();
-    let min_mass = sim.particles().min_mass();
-    let limit = explicit_stability_limit(cfg, min_mass);
+    let limit = explicit_stability_limit_of(cfg, sim.topology(), sim.particles());
     outln!("{}", summary(&scene));
     outln!(
         "dt={} s substeps={} (substep {:.3e} s); estimated stable substep for the explicit integrators: {:.3e} s ({} substeps per step)",

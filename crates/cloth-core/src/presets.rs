@@ -11,10 +11,18 @@ use crate::grid::{GridBuilder, Mass};
 use crate::sim::Simulation;
 
 /// Substeps per step that keep symplectic Euler and Verlet inside the stability estimate of
-/// [`explicit_stability_limit`] with a safety factor of 1.25.
+/// [`explicit_stability_limit`] (stiffness only) with a safety factor of 1.25. A scene's
+/// `"auto"` also keeps them under [`crate::diagnostics::explicit_stability_limit_of`], which
+/// counts the cloth's dashpots and damping ([`substeps_within`]).
 #[must_use]
 pub fn stable_substeps(config: &SimConfig, min_mass: f32) -> u32 {
-    let limit = explicit_stability_limit(config, min_mass);
+    substeps_within(config, explicit_stability_limit(config, min_mass))
+}
+
+/// Substeps per step that keep the substep under `limit` (s) with a safety factor of 1.25
+/// (at least 1, at most [`crate::config::MAX_SUBSTEPS`]).
+#[must_use]
+pub fn substeps_within(config: &SimConfig, limit: f32) -> u32 {
     ((1.25 * config.dt / limit).ceil() as u32).clamp(1, crate::config::MAX_SUBSTEPS)
 }
 

@@ -1319,7 +1319,21 @@ impl Scene {
         grid = grid.pin_indices(c.pins.indices.iter().copied());
         let cloth = grid.build()?;
         let min_mass = cloth.particles.min_mass();
-        let mut sim = Simulation::new(cloth, self.config(min_mass))?;
+        let mut config = self.config(min_mass);
+        if matches!(self.solver.substeps, SubstepsDesc::Word(_)) && config.integrator.is_explicit()
+        {
+            // "auto" for the explicit integrators: also within the bound that counts this
+            // cloth's dashpots and damping, which binds at high resolutions.
+            config.substeps = config.substeps.max(crate::presets::substeps_within(
+                &config,
+                crate::diagnostics::explicit_stability_limit_of(
+                    &config,
+                    &cloth.topology,
+                    &cloth.particles,
+                ),
+            ));
+        }
+        let mut sim = Simulation::new(cloth, config)?;
         for (i, col) in self.colliders.iter().enumerate() {
             let shape = match col.kind {
                 ColliderKind::Sphere => Shape::Sphere {

@@ -647,7 +647,14 @@ impl Simulation {
                 time: self.time,
                 particle: bad.particle,
                 reason: bad.reason,
-                hint: instability_hint(&self.config, self.particles.min_mass()),
+                hint: instability_hint(
+                    &self.config,
+                    crate::diagnostics::explicit_stability_limit_of(
+                        &self.config,
+                        &self.topology,
+                        &self.particles,
+                    ),
+                ),
             });
         }
         self.pin_target.fill(None);

@@ -1278,3 +1278,63 @@ fn restore_takes_back_a_state_and_refuses_one_that_does_not_fit() {
     );
     assert_eq!(bits(&b.particles().position), before);
 }
+
+/// Symplectic Euler on a damped oscillator (stiffness κ and damping γ per unit mass) is stable
+/// only while h²κ + 2hγ < 4, so strong dashpots bound the substep below what the stiffness
+/// alone allows (their c/m grows as 1/Δx² where √(k/m) grows as 1/Δx: the drape at 512²).
+/// "auto" substeps take that bound: a small cloth with strong dashpots gets more substeps than
+/// the stiffness-only estimate asks for and runs 60 steps stably, while the stiffness-only
+/// count is reported `Unstable`, with the damped bound in its hint.
+#[test]
+fn auto_substeps_respect_the_dashpots_stability_bound() {
+    let source = r#"
+name = "damped"
+[cloth]
+resolution = [24, 24]
+size = [1.0, 1.0]
+origin = [0.0, 1.0, 0.0]
+density = 0.2
+[material]
+warp = { stiffness = 400.0, damping = 2.0 }
+weft = { stiffness = 400.0, damping = 2.0 }
+shear = { stiffness = 80.0, damping = 1.0 }
+bend = { stiffness = 10.0, damping = 0.5 }
+[solver]
+kind = "symplectic-euler"
+dt = 0.016666668
+substeps = "auto"
+"#;
+    let scene = cloth_core::scene::Scene::from_toml(source, "damped.toml").expect("scene");
+    let mut sim = scene.build().expect("build");
+    let min_mass = sim.particles().min_mass();
+    let stiffness_only = cloth_core::presets::stable_substeps(sim.config(), min_mass);
+    let damped = cloth_core::diagnostics::explicit_stability_limit_of(
+        sim.config(),
+        sim.topology(),
+        sim.particles(),
+    );
+    let auto = sim.config().substeps;
+    assert!(
+        auto > stiffness_only,
+        "the dashpots must bind here: auto {auto}, stiffness only {stiffness_only}"
+    );
+    assert!(
+        sim.config().substep_dt() < damped,
+        "auto substeps within the damped bound"
+    );
+    for _ in 0..60 {
+        sim.step().expect("auto substeps are stable");
+    }
+
+    let mut fast = scene.build().expect("build");
+    let mut config = *fast.config();
+    config.substeps = stiffness_only;
+    fast.set_config(config).unwrap();
+    let err = (0..60)
+        .find_map(|_| fast.step().err())
+        .expect("the stiffness-only substep must be unstable with these dashpots");
+    let ClothError::Unstable { ref hint, .. } = err else {
+        panic!("expected Unstable, got {err:?}");
+    };
+    assert!(hint.contains(&format!("{damped:.3e}")), "{hint}");
+}
