@@ -125,6 +125,32 @@ pub struct CheckArgs {
     /// Overrides, as for `cloth sim`.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
+    #[arg(
+        long,
+        value_name = "N",
+        value_parser = parse_resolution,
+        help = "Shorthand for --set cloth.resolution=[N,N], as for `cloth sim`"
+    )]
+    pub resolution: Option<usize>,
+    /// Shorthand for --set solver.kind="NAME", as for `cloth sim`.
+    #[arg(long, value_name = "NAME", value_parser = parse_integrator)]
+    pub integrator: Option<cloth_core::Integrator>,
+}
+
+/// `--set` overrides followed by those of the `--resolution` and `--integrator` shorthands.
+fn with_shorthands(
+    set: &[String],
+    resolution: Option<usize>,
+    integrator: Option<cloth_core::Integrator>,
+) -> Vec<String> {
+    let mut overrides = set.to_vec();
+    if let Some(n) = resolution {
+        overrides.push(format!("cloth.resolution=[{n},{n}]"));
+    }
+    if let Some(integrator) = integrator {
+        overrides.push(format!("solver.kind=\"{}\"", integrator.name()));
+    }
+    overrides
 }
 
 /// A count >= 1.
@@ -233,7 +259,8 @@ fn summary(scene: &Scene) -> String {
 
 /// `cloth check`.
 pub fn check(args: &CheckArgs) -> ExitCode {
-    let scene = match scene::load(&args.scene, &args.set) {
+    let overrides = with_shorthands(&args.set, args.resolution, args.integrator);
+    let scene = match scene::load(&args.scene, &overrides) {
         Ok((s, _)) => s,
         Err(e) => {
             eprintln!("error: {e}");
@@ -432,13 +459,7 @@ fn scene_name(args: &SimArgs) -> &str {
 
 fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
     // 1. The scene: from a checkpoint, or from the file/built-in with overrides.
-    let mut overrides = args.set.clone();
-    if let Some(n) = args.resolution {
-        overrides.push(format!("cloth.resolution=[{n},{n}]"));
-    }
-    if let Some(integrator) = args.integrator {
-        overrides.push(format!("solver.kind=\"{}\"", integrator.name()));
-    }
+    let overrides = with_shorthands(&args.set, args.resolution, args.integrator);
     let checkpoint: Option<Checkpoint> = match &args.resume {
         Some(path) => {
             let text = std::fs::read_to_string(path).map_err(|e| {

@@ -308,3 +308,23 @@ fn a_failed_write_to_stdout_is_one_error_line() {
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
 }
+
+/// `cloth check` takes `cloth sim`'s shorthands: `--resolution N` and `--integrator NAME`
+/// validate the scene they describe (and a bad value is refused naming the flag and range).
+#[test]
+fn check_takes_the_resolution_and_integrator_shorthands() {
+    let (code, stdout, stderr) = cloth(&[
+        "check",
+        "drape",
+        "--resolution",
+        "64",
+        "--integrator",
+        "xpbd",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(stdout.contains("64x64"), "{stdout}");
+    assert!(stdout.contains("integrator=xpbd"), "{stdout}");
+    let (code, _, stderr) = cloth(&["check", "drape", "--resolution", "1"]);
+    assert_eq!(code, 2, "{stderr}");
+    assert!(stderr.contains("2 ..= 8192"), "{stderr}");
+}
