@@ -81,16 +81,8 @@ pub struct SimArgs {
                 --set solver.kind=xpbd (a bare word is a string) (repeatable)"
     )]
     pub set: Vec<String>,
-    #[arg(
-        long,
-        value_name = "N",
-        value_parser = parse_resolution,
-        help = "Shorthand for --set cloth.resolution=[N,N]"
-    )]
-    pub resolution: Option<usize>,
-    /// Shorthand for --set solver.kind="NAME".
-    #[arg(long, value_name = "NAME", value_parser = parse_integrator)]
-    pub integrator: Option<cloth_core::Integrator>,
+    #[command(flatten)]
+    pub shorthands: Shorthands,
     /// Save a checkpoint every N frames (into --out, or the current folder), atomically.
     #[arg(long, value_name = "N", value_parser = parse_positive_u64)]
     pub checkpoint_every: Option<u64>,
@@ -125,32 +117,37 @@ pub struct CheckArgs {
     /// Overrides, as for `cloth sim`.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
+    #[command(flatten)]
+    pub shorthands: Shorthands,
+}
+
+/// The shorthands `cloth sim` and `cloth check` take for two overrides.
+#[derive(Args, Debug, Clone)]
+pub struct Shorthands {
     #[arg(
         long,
         value_name = "N",
         value_parser = parse_resolution,
-        help = "Shorthand for --set cloth.resolution=[N,N], as for `cloth sim`"
+        help = "Shorthand for --set cloth.resolution=[N,N]"
     )]
     pub resolution: Option<usize>,
-    /// Shorthand for --set solver.kind="NAME", as for `cloth sim`.
+    /// Shorthand for --set solver.kind="NAME".
     #[arg(long, value_name = "NAME", value_parser = parse_integrator)]
     pub integrator: Option<cloth_core::Integrator>,
 }
 
-/// `--set` overrides followed by those of the `--resolution` and `--integrator` shorthands.
-fn with_shorthands(
-    set: &[String],
-    resolution: Option<usize>,
-    integrator: Option<cloth_core::Integrator>,
-) -> Vec<String> {
-    let mut overrides = set.to_vec();
-    if let Some(n) = resolution {
-        overrides.push(format!("cloth.resolution=[{n},{n}]"));
+impl Shorthands {
+    /// `set` followed by the overrides these shorthands stand for.
+    fn overrides(&self, set: &[String]) -> Vec<String> {
+        let mut overrides = set.to_vec();
+        if let Some(n) = self.resolution {
+            overrides.push(format!("cloth.resolution=[{n},{n}]"));
+        }
+        if let Some(integrator) = self.integrator {
+            overrides.push(format!("solver.kind=\"{}\"", integrator.name()));
+        }
+        overrides
     }
-    if let Some(integrator) = integrator {
-        overrides.push(format!("solver.kind=\"{}\"", integrator.name()));
-    }
-    overrides
 }
 
 /// A count >= 1.
@@ -259,7 +256,7 @@ fn summary(scene: &Scene) -> String {
 
 /// `cloth check`.
 pub fn check(args: &CheckArgs) -> ExitCode {
-    let overrides = with_shorthands(&args.set, args.resolution, args.integrator);
+    let overrides = args.shorthands.overrides(&args.set);
     let scene = match scene::load(&args.scene, &overrides) {
         Ok((s, _)) => s,
         Err(e) => {
@@ -459,7 +456,7 @@ fn scene_name(args: &SimArgs) -> &str {
 
 fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
     // 1. The scene: from a checkpoint, or from the file/built-in with overrides.
-    let overrides = with_shorthands(&args.set, args.resolution, args.integrator);
+    let overrides = args.shorthands.overrides(&args.set);
     let checkpoint: Option<Checkpoint> = match &args.resume {
         Some(path) => {
             let text = std::fs::read_to_string(path).map_err(|e| {

@@ -5,15 +5,14 @@ use glam::Vec3;
 
 use crate::collide::{Collider, Friction};
 use crate::config::{Air, Integrator, Material, SimConfig, SpringParams};
-use crate::diagnostics::explicit_stability_limit;
+use crate::diagnostics::{explicit_stability_limit, explicit_stability_limit_of};
 use crate::error::{ClothError, Result};
-use crate::grid::{GridBuilder, Mass};
+use crate::grid::{Cloth, GridBuilder, Mass};
 use crate::sim::Simulation;
 
-/// Substeps per step that keep symplectic Euler and Verlet inside the stability estimate of
-/// [`explicit_stability_limit`] (stiffness only) with a safety factor of 1.25. A scene's
-/// `"auto"` also keeps them under [`crate::diagnostics::explicit_stability_limit_of`], which
-/// counts the cloth's dashpots and damping ([`substeps_within`]).
+/// Substeps per step that keep symplectic Euler and Verlet inside the stiffness-only stability
+/// estimate of [`explicit_stability_limit`] with a safety factor of 1.25. "auto" substeps
+/// ([`tune_for_integrator`]) take the cloth's own bound, dashpots and damping included.
 #[must_use]
 pub fn stable_substeps(config: &SimConfig, min_mass: f32) -> u32 {
     substeps_within(config, explicit_stability_limit(config, min_mass))
@@ -21,19 +20,23 @@ pub fn stable_substeps(config: &SimConfig, min_mass: f32) -> u32 {
 
 /// Substeps per step that keep the substep under `limit` (s) with a safety factor of 1.25
 /// (at least 1, at most [`crate::config::MAX_SUBSTEPS`]).
-#[must_use]
-pub fn substeps_within(config: &SimConfig, limit: f32) -> u32 {
+fn substeps_within(config: &SimConfig, limit: f32) -> u32 {
     ((1.25 * config.dt / limit).ceil() as u32).clamp(1, crate::config::MAX_SUBSTEPS)
 }
 
-/// Chooses the substeps (and XPBD's tethers) of a preset for `config.integrator`: the explicit
-/// integrators get [`stable_substeps`]; implicit Euler one substep per 1/60 s step (it is
-/// stable at any step); XPBD 20 substeps per 1/60 s.
-pub fn tune_for_integrator(config: &mut SimConfig, min_mass: f32) {
+/// Chooses the substeps of `config.integrator` for `cloth`: the explicit integrators stay
+/// 1.25× under [`explicit_stability_limit_of`] (the Gershgorin bound of each free particle's
+/// springs, dashpots and damping, never above the stiffness-only [`explicit_stability_limit`];
+/// the dashpots set it at high resolutions); implicit Euler takes one substep per 1/60 s step
+/// (it is stable at any step); XPBD 20 substeps per 1/60 s.
+pub fn tune_for_integrator(config: &mut SimConfig, cloth: &Cloth) {
     config.substeps = match config.integrator {
         Integrator::ImplicitEuler => (config.dt * 60.0).ceil().max(1.0) as u32,
         Integrator::Xpbd => (config.dt * 60.0 * 20.0).ceil().max(1.0) as u32,
-        _ => stable_substeps(config, min_mass),
+        _ => substeps_within(
+            config,
+            explicit_stability_limit_of(config, &cloth.topology, &cloth.particles),
+        ),
     };
 }
 

@@ -31,7 +31,9 @@ use crate::config::{
     StabilityLimits, XpbdSettings,
 };
 use crate::error::{ClothError, Result};
-use crate::grid::{Corner, Edge, GridBuilder, MAX_CLOTH_EXTENT, MAX_GRID_SIDE, Mass, Orientation};
+use crate::grid::{
+    Cloth, Corner, Edge, GridBuilder, MAX_CLOTH_EXTENT, MAX_GRID_SIDE, Mass, Orientation,
+};
 use crate::presets::tune_for_integrator;
 use crate::sim::Simulation;
 
@@ -1207,9 +1209,10 @@ impl Scene {
         Ok(())
     }
 
-    /// The simulation configuration this scene describes (substeps resolved).
+    /// The simulation configuration this scene describes, its substeps resolved for `cloth`
+    /// (the cloth it builds: "auto" takes the cloth's stability bound).
     #[must_use]
-    pub fn config(&self, min_mass: f32) -> SimConfig {
+    pub fn config(&self, cloth: &Cloth) -> SimConfig {
         let f = &self.forces;
         let s = &self.solver;
         let m = &self.material;
@@ -1261,7 +1264,7 @@ impl Scene {
         };
         match s.substeps {
             SubstepsDesc::Count(n) => config.substeps = n,
-            SubstepsDesc::Word(_) => tune_for_integrator(&mut config, min_mass),
+            SubstepsDesc::Word(_) => tune_for_integrator(&mut config, cloth),
         }
         config.xpbd = XpbdSettings {
             iterations: s.xpbd.iterations,
@@ -1318,21 +1321,7 @@ impl Scene {
         }
         grid = grid.pin_indices(c.pins.indices.iter().copied());
         let cloth = grid.build()?;
-        let min_mass = cloth.particles.min_mass();
-        let mut config = self.config(min_mass);
-        if matches!(self.solver.substeps, SubstepsDesc::Word(_)) && config.integrator.is_explicit()
-        {
-            // "auto" for the explicit integrators: also within the bound that counts this
-            // cloth's dashpots and damping, which binds at high resolutions.
-            config.substeps = config.substeps.max(crate::presets::substeps_within(
-                &config,
-                crate::diagnostics::explicit_stability_limit_of(
-                    &config,
-                    &cloth.topology,
-                    &cloth.particles,
-                ),
-            ));
-        }
+        let config = self.config(&cloth);
         let mut sim = Simulation::new(cloth, config)?;
         for (i, col) in self.colliders.iter().enumerate() {
             let shape = match col.kind {
