@@ -571,6 +571,35 @@ fn check_summarises_without_running() {
     assert!(out.contains("particles=16384"), "{out}");
     assert!(out.contains("memory"), "{out}");
     assert!(out.contains("estimated stable substep"), "{out}");
+    // peer-ball runs at 1.44× the (sufficient, Gershgorin) bound: no warning.
+    assert!(!err.contains("warning"), "{err}");
+    assert!(out.trim_end().ends_with(": ok"), "{out}");
+}
+
+/// `cloth check` warns (on stderr, exit status 0) when an explicit integrator's substep is
+/// more than twice the estimated stable one, with the substeps it needs; the same scene
+/// with xpbd, stable at any step, gets no warning.
+#[test]
+fn check_warns_of_an_explicit_step_past_its_stability_bound() {
+    let (code, out, err) = cloth(&["check", "drape", "--set", "solver.substeps=2"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        err.contains("warning: symplectic-euler will likely go unstable"),
+        "{err}"
+    );
+    assert!(err.contains("raise `solver.substeps` to 92"), "{err}");
+    assert!(out.contains("ok, with a warning"), "{out}");
+    let (code, out, err) = cloth(&[
+        "check",
+        "drape",
+        "--set",
+        "solver.substeps=2",
+        "--integrator",
+        "xpbd",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(!err.contains("warning"), "{err}");
+    assert!(out.trim_end().ends_with(": ok"), "{out}");
 }
 
 /// Ctrl-C (SIGINT) stops a run between frames: exit status 130 and a report with status

@@ -174,7 +174,7 @@ pub(crate) fn measure(
         } else {
             format!(
                 "speed {:.4e} m/s exceeds the limit of {} m/s",
-                v.length(),
+                v.as_dvec3().length(),
                 config.limits.max_speed
             )
         };
@@ -737,6 +737,16 @@ pub fn explicit_stability_limit_of(config: &SimConfig, topology: &Topology, p: &
 /// explicit integrators' stable substep ([`explicit_stability_limit_of`]).
 pub(crate) fn instability_hint(config: &SimConfig, limit: f32) -> String {
     let h = config.substep_dt();
+    // Gravity alone past the speed limit within a few steps: no step size helps.
+    let g = config.gravity.as_dvec3().length();
+    let per_step = g * f64::from(config.dt);
+    if config.forces.gravity && per_step * 10.0 > f64::from(config.limits.max_speed) {
+        return format!(
+            "gravity of {g:.3e} m/s² alone adds {per_step:.3e} m/s per step, past the speed \
+             limit of {} m/s within ten steps; lower `forces.gravity`",
+            config.limits.max_speed
+        );
+    }
     if config.integrator == Integrator::Xpbd {
         let chains = if config.xpbd.chains {
             format!(
@@ -776,21 +786,21 @@ pub(crate) fn instability_hint(config: &SimConfig, limit: f32) -> String {
             "the time step is too large for the stiffness, and no allowed `substeps` is \
              enough: substep h = {h:.3e} s, but this material needs h < ~{limit:.3e} s, \
              about {needed:.1e} substeps per step where at most {most} are allowed; lower the \
-             stiffness, make the particles heavier (the cloth's density), shorten `dt`, or \
+             stiffness or the damping, make the particles heavier (the cloth's density), shorten `dt`, or \
              use xpbd or implicit-euler, which are stable at large steps"
         )
     } else if h > limit {
         format!(
             "the time step is too large for the stiffness: substep h = {h:.3e} s, but this \
              material needs h < ~{limit:.3e} s; raise `substeps` to at least {}, or lower \
-             the stiffness",
+             the stiffness or the damping",
             needed.ceil()
         )
     } else {
         format!(
             "the time step is likely too large for the stiffness or a collider moves too fast \
              (substep h = {h:.3e} s, estimated limit {limit:.3e} s); raise `substeps` or \
-             lower the stiffness"
+             lower the stiffness or the damping"
         )
     }
 }

@@ -13,6 +13,11 @@ pub const MAX_GRID_SIDE: usize = 8192;
 /// where `f32` squared lengths overflow (about 1.8·10¹⁹ m).
 pub const MAX_CLOTH_EXTENT: f32 = 1.0e4;
 
+/// How many representable f32 steps (at the cloth's largest coordinate) a grid spacing must
+/// span: 64, so a spring's length is known to about 1/64 of its rest length at worst (a 1 cm
+/// spacing may lie up to 1.3 km from the world origin).
+pub const RESOLVED_ULPS: f32 = 64.0;
+
 /// Largest spacing between `points` particles in a line (≥ 2) that keeps the line within
 /// [`MAX_CLOTH_EXTENT`], m.
 pub(crate) fn max_spacing(points: usize) -> f32 {
@@ -326,6 +331,28 @@ impl GridBuilder {
                 "grid.size",
                 (width, height),
                 format!("a size whose positions are finite (particle {i} is not)"),
+            ));
+        }
+        // f32 positions must resolve the spacing where the cloth is: far from the world
+        // origin neighbours would round onto one another (springs of zero rest length, strains
+        // of 0/0). At least `RESOLVED_ULPS` representable steps per spacing.
+        let far = position
+            .iter()
+            .map(|p| p.abs().max_element())
+            .fold(0.0_f32, f32::max);
+        let spacing = dx.min(dy);
+        let needed = far * f32::EPSILON * RESOLVED_ULPS;
+        if spacing < needed {
+            return Err(ClothError::invalid(
+                "grid.origin",
+                self.origin,
+                format!(
+                    "every particle within {:.3e} m of the world origin for a spacing of \
+                     {spacing:.3e} m (f32 positions must resolve 1/{RESOLVED_ULPS} of a \
+                     spacing), but one is {far:.3e} m from it: move the cloth nearer the \
+                     origin, or make it larger",
+                    spacing / (f32::EPSILON * RESOLVED_ULPS)
+                ),
             ));
         }
 

@@ -1320,7 +1320,19 @@ impl Scene {
             });
         }
         grid = grid.pin_indices(c.pins.indices.iter().copied());
-        let cloth = grid.build()?;
+        // The builder names its arguments `grid.*`; here they are the scene's `cloth.*` keys.
+        let cloth = grid.build().map_err(|e| match e {
+            ClothError::InvalidArgument {
+                name,
+                value,
+                allowed,
+            } => ClothError::InvalidArgument {
+                name: name.replacen("grid.", "cloth.", 1),
+                value,
+                allowed,
+            },
+            other => other,
+        })?;
         let config = self.config(&cloth);
         let mut sim = Simulation::new(cloth, config)?;
         for (i, col) in self.colliders.iter().enumerate() {

@@ -1095,6 +1095,29 @@ fn instability_hint_says_when_no_allowed_substeps_is_enough() {
     assert!(!hint.contains("raise `substeps` to at least"), "{hint}");
 }
 
+/// A gravity that alone passes the speed limit (1000 m/s by default) within ten steps is
+/// named as the cause, whatever the integrator, and no substep count is suggested: here
+/// 10⁶ m/s² adds 1.7·10⁴ m/s per 1/60 s step, and the first step is reported unstable.
+#[test]
+fn instability_hint_names_an_extreme_gravity() {
+    for integrator in [Integrator::SymplecticEuler, Integrator::Xpbd] {
+        let cloth = GridBuilder::new(8, 8).size(0.5, 0.5).build().unwrap();
+        let config = SimConfig {
+            integrator,
+            gravity: Vec3::new(0.0, -1e6, 0.0),
+            ..SimConfig::default()
+        };
+        let mut sim = Simulation::new(cloth, config).unwrap();
+        let err = sim.step().expect_err("past the speed limit in one step");
+        let ClothError::Unstable { ref hint, .. } = err else {
+            panic!("expected Unstable, got {err:?}");
+        };
+        assert!(hint.contains("gravity of 1.000e6 m/s²"), "{hint}");
+        assert!(hint.contains("lower `forces.gravity`"), "{hint}");
+        assert!(!hint.contains("substeps"), "{hint}");
+    }
+}
+
 /// Forward Euler multiplies the energy of an undamped spring mode by 1 + (ωh)² every
 /// substep, so an undamped cloth (no global damping, dashpots or air) must eventually be
 /// reported `Unstable`, here within 600 steps (10 s), with the forward-Euler hint; the

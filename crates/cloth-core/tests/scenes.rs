@@ -62,6 +62,89 @@ fn builtin_scenes_run_headless() {
     }
 }
 
+/// The smallest cloths a scene file may ask for (2 ..= 5 particles a side, narrower than
+/// the bend springs' span and the solvers' blocks) run every built-in scene, with its own
+/// integrator and with XPBD in each of its sweep modes (pairs; chains with rounds, Newton
+/// iterations, the strain limit and the multi-resolution limits; shear chains), on the
+/// default kernel: each step either succeeds or reports an instability, never panics, and
+/// the state stays finite (a failed step keeps the last good state).
+#[test]
+fn smallest_grids_run_every_scene_and_solver_mode() {
+    let xpbd_modes: [&[&str]; 4] = [
+        &[],
+        &["solver.kind=\"xpbd\""],
+        &[
+            "solver.kind=\"xpbd\"",
+            "solver.xpbd={chains=true,chain_rounds=2,chain_iterations=2,structural_limit=0.02,hierarchy_levels=3}",
+        ],
+        &[
+            "solver.kind=\"xpbd\"",
+            "solver.xpbd={chains=true,shear_chains=true,iterations=2}",
+        ],
+    ];
+    for (name, _) in BUILTIN {
+        for [rows, cols] in [[2, 2], [2, 5], [5, 2], [3, 3], [4, 4]] {
+            for mode in xpbd_modes {
+                let mut sets = vec![format!("cloth.resolution=[{rows}, {cols}]")];
+                sets.extend(mode.iter().map(|s| (*s).to_string()));
+                let (scene, _) = scene::load(name, &sets).expect("scene");
+                let mut sim = scene.build().expect("build");
+                for _ in 0..3 {
+                    if sim.step().is_err() {
+                        break;
+                    }
+                }
+                assert!(
+                    sim.particles().position.iter().all(|p| p.is_finite()),
+                    "{name} {rows}x{cols} {mode:?}"
+                );
+            }
+        }
+    }
+}
+
+/// f32 positions have about 7 significant digits: a cloth far from the world origin (or
+/// tiny) whose neighbours would round onto one another (springs of zero rest length, strains
+/// of 0/0) is refused with the key and the distance allowed for its spacing (at least
+/// `RESOLVED_ULPS` = 64 representable steps per spacing), by the builder as `grid.origin`
+/// and by a scene as `cloth.origin`; a cloth well within the bound builds and steps.
+#[test]
+fn cloths_f32_cannot_resolve_are_refused() {
+    use cloth_core::GridBuilder;
+    use cloth_core::glam::Vec3;
+    let err = GridBuilder::new(8, 8)
+        .size(1.0, 1.0)
+        .origin(Vec3::new(1e30, 0.0, 0.0))
+        .build()
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("`grid.origin`"), "{err}");
+    assert!(err.contains("of the world origin"), "{err}");
+    let sets = |s: &[&str]| s.iter().map(|x| (*x).to_string()).collect::<Vec<_>>();
+    for bad in [
+        &["cloth.origin=[1e30, 0, 0]"][..],
+        &["cloth.size=[1e-9, 1e-9]"],
+    ] {
+        let (scene, _) = scene::load("drape", &sets(bad)).expect("parses");
+        let Err(err) = scene.build() else {
+            panic!("{bad:?}: built")
+        };
+        let err = err.to_string();
+        assert!(err.contains("`cloth.origin`"), "{bad:?}: {err}");
+    }
+    // 1 km out (f32 steps of 6.1e-5 m there), a 2.6 cm spacing: the bound is 3.3 km.
+    let (scene, _) = scene::load("drape", &sets(&["cloth.origin=[1000, 0.55, 0]"])).expect("far");
+    let mut sim = scene.build().expect("builds");
+    for _ in 0..10 {
+        let stats = sim.step().expect("steps");
+        assert!(
+            stats
+                .strain(cloth_core::topology::SpringClass::Structural)
+                .is_finite()
+        );
+    }
+}
+
 /// `scenes/peer-ball.toml` is exactly the scene `presets::peer_ball(128)` computes from the
 /// peer README's formulas: same particles, masses, springs, parameters and collider.
 #[test]

@@ -383,7 +383,8 @@ impl XpbdGrid {
 
     /// Stage 1 of an XPBD substep on the grid, rows in parallel, on the arrays, with the
     /// reference's arithmetic in the reference's order (so the same bits): the external force
-    /// of every particle (weight, global damping, then its share of the air force of each
+    /// of every particle (weight, global damping capped at m/h ([`crate::forces::capped_damping`]),
+    /// then its share of the air force of each
     /// adjacent triangle in triangle order), then `v ← v + h·f/m`, `start ← x`, `x ← x + h·v`,
     /// component by component as loops over the row that the compiler vectorises. One pass
     /// over bands of [`PREDICT_BAND`] rows: each row is predicted right after the air of the
@@ -1139,6 +1140,11 @@ impl XpbdGrid {
     /// row's corrections first, then applied to both ends.
     fn horizontal(&mut self, s: usize, colour: usize, which: Rest, mode: Mode) {
         let cols = self.cols;
+        if s >= cols {
+            // No pair `s` columns apart (a bend on a cloth two columns wide): nothing to
+            // project, and no colour mask at that spacing.
+            return;
+        }
         let m = cols - s;
         let mut lambda = self.take_lambda(which);
         let mask = &self.masks[s.trailing_zeros() as usize][colour];
@@ -1541,6 +1547,8 @@ impl PredictLane<'_> {
     ) {
         let n = x.len();
         let (h, g, d) = (self.h, self.g, self.damping);
+        let inv_h = 1.0 / h;
+        let cap = |m: f32| crate::forces::capped_damping(d, m, inv_h);
         let (m, w, v, x0) = (&self.m[..n], &self.w[..n], &mut v[..n], &mut x0[..n]);
         let integrate = |f: f32, w: f32, x: &mut f32, v: &mut f32, x0: &mut f32| {
             *v += (h * w) * f;
@@ -1548,7 +1556,7 @@ impl PredictLane<'_> {
             *x += h * *v;
         };
         // Column 0: the cells to its right only.
-        let mut f = m[0] * g - d * v[0];
+        let mut f = m[0] * g - cap(m[0]) * v[0];
         if UP {
             f += u0[0];
             f += u1[0];
@@ -1559,7 +1567,7 @@ impl PredictLane<'_> {
         integrate(f, w[0], &mut x[0], &mut v[0], &mut x0[0]);
         // Last column: the cells to its left only.
         let l = n - 1;
-        let mut f = m[l] * g - d * v[l];
+        let mut f = m[l] * g - cap(m[l]) * v[l];
         if UP {
             f += u1[l - 1];
         }
@@ -1584,7 +1592,7 @@ impl PredictLane<'_> {
             (empty, empty, empty)
         };
         for i in 0..k {
-            let mut f = m[i] * g - d * v[i];
+            let mut f = m[i] * g - cap(m[i]) * v[i];
             if UP {
                 f += ul1[i];
                 f += ur0[i];

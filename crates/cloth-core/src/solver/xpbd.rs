@@ -2,8 +2,9 @@
 //! many-substeps scheme of Macklin et al. 2019, "Small Steps in Physics Simulation".
 //!
 //! One substep of length h:
-//! 1. predict: v ← v + h·(g + f_ext/m) (global damping and air are the external forces),
-//!    x_prev ← x, x ← x + h·v;
+//! 1. predict: v ← v + h·(g + f_ext/m) (global damping and air are the external forces; the
+//!    damping coefficient capped at m/h, [`crate::forces::capped_damping`], so that it never
+//!    reverses a velocity however large it is), x_prev ← x, x ← x + h·v;
 //! 2. `iterations` Gauss–Seidel sweeps, each over: every spring as a distance constraint
 //!    C = |x_a − x_b| − L0 with compliance α = 1/k (so a material gives the same cloth as with
 //!    the force-based integrators) and the dashpot as XPBD constraint damping β = c, in the
@@ -199,7 +200,16 @@ pub(super) fn substep(
         let mut ext = *cfg;
         ext.forces.springs = false;
         ext.forces.dashpots = false;
-        crate::forces::accumulate(&ext, ctx.topology, ctx.particles, ctx.wind, force);
+        // The global damping capped at m/h, so that it never reverses a velocity (XPBD's
+        // step is otherwise stable for any h).
+        crate::forces::accumulate_capped(
+            &ext,
+            ctx.topology,
+            ctx.particles,
+            ctx.wind,
+            force,
+            1.0 / h,
+        );
         sc.prev.clone_from(&ctx.particles.position);
         let p = &mut *ctx.particles;
         for (((x, v), &w), &f) in p
