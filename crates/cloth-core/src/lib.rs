@@ -72,7 +72,7 @@ pub use error::{ClothError, Result};
 pub use glam;
 pub use grid::{Cloth, Corner, Edge, GridBuilder, Mass, Orientation};
 pub use particles::Particles;
-pub use sim::{Contact, ContactWith, SimState, Simulation};
+pub use sim::{Contact, ContactWith, MAX_SELF_COLLISION_SPACINGS, SimState, Simulation};
 pub use topology::{Spring, SpringClass, SpringKind, Topology};
 
 /// The README's examples, compiled and run as doc-tests.

@@ -1334,7 +1334,19 @@ impl Scene {
             other => other,
         })?;
         let config = self.config(&cloth);
-        let mut sim = Simulation::new(cloth, config)?;
+        // The configuration's `config.self_collision.*` are the scene's `solver.self_collision.*`.
+        let mut sim = Simulation::new(cloth, config).map_err(|e| match e {
+            ClothError::InvalidArgument {
+                name,
+                value,
+                allowed,
+            } => ClothError::InvalidArgument {
+                name: name.replacen("config.self_collision.", "solver.self_collision.", 1),
+                value,
+                allowed,
+            },
+            other => other,
+        })?;
         for (i, col) in self.colliders.iter().enumerate() {
             let shape = match col.kind {
                 ColliderKind::Sphere => Shape::Sphere {

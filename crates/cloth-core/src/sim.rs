@@ -9,7 +9,7 @@ use crate::error::{ClothError, Result, check};
 use crate::grid::Cloth;
 use crate::particles::Particles;
 use crate::solver::{Solver, SubstepCtx};
-use crate::topology::Topology;
+use crate::topology::{SpringClass, SpringKind, Topology};
 
 /// A cloth simulation.
 ///
@@ -107,6 +107,39 @@ pub struct SimState {
     pub inv_mass: Vec<f32>,
     /// Each collider's shape at the saved time (colliders move and turn).
     pub collider_shapes: Vec<crate::collide::Shape>,
+}
+
+/// Largest self-collision thickness, in the cloth's largest structural rest length: a
+/// particle's candidate pairs grow with (thickness / spacing)², so 16 spacings (about 800
+/// candidates per particle in a flat layer) keeps the pair search's time and memory bounded
+/// (a thickness of the cloth's whole size would make every pair a candidate: n² of them).
+pub const MAX_SELF_COLLISION_SPACINGS: f32 = 16.0;
+
+/// The checks of a configuration that need the cloth: the self-collision thickness against
+/// the grid spacing ([`MAX_SELF_COLLISION_SPACINGS`]).
+fn check_for_cloth(config: &SimConfig, topology: &Topology) -> Result<()> {
+    let Some(sc) = config.self_collision else {
+        return Ok(());
+    };
+    let spacing = SpringKind::ALL
+        .into_iter()
+        .filter(|k| k.class() == SpringClass::Structural)
+        .flat_map(|k| topology.springs_of(k))
+        .map(|s| s.rest_length)
+        .fold(0.0_f32, f32::max);
+    let most = MAX_SELF_COLLISION_SPACINGS * spacing;
+    if spacing > 0.0 && sc.thickness > most {
+        return Err(ClothError::invalid(
+            "config.self_collision.thickness",
+            sc.thickness,
+            format!(
+                "(0, {most:.4}] m: at most {MAX_SELF_COLLISION_SPACINGS} grid spacings of \
+                 {spacing:.4} m (use about one spacing; a thicker layer makes the pair search's \
+                 time and memory grow with its square)"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 impl Simulation {
@@ -237,6 +270,7 @@ impl Simulation {
     /// A simulation of `cloth` with `config` (validated) and no colliders.
     pub fn new(cloth: Cloth, config: SimConfig) -> Result<Self> {
         config.validate()?;
+        check_for_cloth(&config, &cloth.topology)?;
         let n = cloth.particles.len();
         let mut sim = Self {
             particles: cloth.particles,
@@ -290,6 +324,7 @@ impl Simulation {
     /// next step.
     pub fn set_config(&mut self, config: SimConfig) -> Result<()> {
         config.validate()?;
+        check_for_cloth(&config, &self.topology)?;
         self.config = config;
         self.refresh_stats();
         Ok(())
@@ -467,9 +502,9 @@ impl Simulation {
             Some(sc) => sc.thickness,
             None => self
                 .topology
-                .springs_of(crate::topology::SpringKind::Warp)
+                .springs_of(SpringKind::Warp)
                 .iter()
-                .chain(self.topology.springs_of(crate::topology::SpringKind::Weft))
+                .chain(self.topology.springs_of(SpringKind::Weft))
                 .map(|s| s.rest_length)
                 .fold(0.0, f32::max),
         });

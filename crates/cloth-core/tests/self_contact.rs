@@ -288,3 +288,46 @@ fn contacts_list_collider_and_layer_contacts() {
         assert!(layer.contains(&(j, i)));
     }
 }
+
+/// A self-collision thickness over 16 grid spacings (the pair search's candidates grow with
+/// its square: 2 m on the 128² drape would make every pair of the 16,384 particles a
+/// candidate) is refused by `Simulation::new` and `set_config` naming
+/// `config.self_collision.thickness` and the bound, and by a scene naming
+/// `solver.self_collision.thickness`; 16 spacings exactly is accepted.
+#[test]
+fn self_collision_thicker_than_sixteen_spacings_is_refused() {
+    use cloth_core::{SelfCollision, SimConfig, Simulation};
+    let cloth = || {
+        GridBuilder::new(9, 9)
+            .size(0.8, 0.8)
+            .build()
+            .expect("cloth")
+    };
+    let with = |thickness: f32| SimConfig {
+        self_collision: Some(SelfCollision {
+            thickness,
+            ..SelfCollision::default()
+        }),
+        ..SimConfig::default()
+    };
+    // Spacing 0.1 m: at most 1.6 m.
+    let Err(err) = Simulation::new(cloth(), with(1.7)) else {
+        panic!("a 1.7 m layer on a 0.1 m grid was accepted")
+    };
+    let err = err.to_string();
+    assert!(err.contains("`config.self_collision.thickness`"), "{err}");
+    assert!(err.contains("(0, 1.6000] m"), "{err}");
+    let mut sim = Simulation::new(cloth(), with(1.6)).expect("16 spacings");
+    let err = sim.set_config(with(2.0)).unwrap_err().to_string();
+    assert!(err.contains("`config.self_collision.thickness`"), "{err}");
+    let (scene, _) = cloth_core::scene::load(
+        "xpbd-drape",
+        &["solver.self_collision={thickness=2.0}".to_string()],
+    )
+    .expect("parses");
+    let Err(err) = scene.build() else {
+        panic!("built")
+    };
+    let err = err.to_string();
+    assert!(err.contains("`solver.self_collision.thickness`"), "{err}");
+}

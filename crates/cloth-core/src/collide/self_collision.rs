@@ -20,8 +20,10 @@ use crate::particles::Particles;
 /// Self-collision settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SelfCollision {
-    /// Distance particles keep from each other, m, `> 0`. Default 0.01 m. Use about the grid
-    /// spacing: smaller lets coarse cloth pass through itself between particles.
+    /// Distance particles keep from each other, m, `> 0` and at most
+    /// [`crate::MAX_SELF_COLLISION_SPACINGS`] (16) grid spacings. Default 0.01 m. Use
+    /// about the grid spacing: smaller lets coarse cloth pass through itself between
+    /// particles.
     pub thickness: f32,
     /// Friction between touching layers, `>= 0`: the tangential relative speed of a contact
     /// drops by at most this times its normal speed change. Default 0.3.
