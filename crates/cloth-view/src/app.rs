@@ -102,13 +102,15 @@ impl World {
     fn reset(&mut self, config: Option<SimConfig>) {
         match self.scene.build(self.resolution, self.integrator) {
             Ok(mut sim) => {
+                self.message = None;
+                // A kept configuration the rebuilt cloth refuses (the scene's own is used
+                // instead) is said, not dropped.
                 if let Some(c) = config
                     && let Err(e) = sim.set_config(c)
                 {
-                    self.message = Some(e.to_string());
+                    self.message = Some(format!("kept the scene's settings: {e}"));
                 }
                 self.sim = sim;
-                self.message = None;
             }
             Err(e) => self.message = Some(e.to_string()),
         }
