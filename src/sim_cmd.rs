@@ -241,7 +241,7 @@ fn available_memory() -> Option<u64> {
 
 fn summary(scene: &Scene) -> String {
     let (particles, springs) = scene.counts();
-    let mem = scene::memory_estimate(particles, springs);
+    let mem = scene.memory_estimate();
     format!(
         "scene {} {}x{} particles={} springs={} integrator={} memory≈{:.1} MiB",
         scene.name,
@@ -537,7 +537,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         }
     };
     let (particles, springs) = scene.counts();
-    let mem = scene::memory_estimate(particles, springs);
+    let mem = scene.memory_estimate();
     if let Some(avail) = available_memory()
         && mem > avail
         && !args.force

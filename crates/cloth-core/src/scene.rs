@@ -908,6 +908,30 @@ impl Scene {
         (r * c, springs)
     }
 
+    /// Bytes the scene's simulation needs, roughly: [`memory_estimate`] of its particles and
+    /// springs, plus, with self-collision, the candidate pairs within twice the thickness
+    /// (12 bytes each; about π(2t)²/(2·Δx·Δy) per particle on a flat sheet, at least the 12
+    /// the list reserves) and the positions the list was built at.
+    #[must_use]
+    pub fn memory_estimate(&self) -> u64 {
+        let (particles, springs) = self.counts();
+        let base = memory_estimate(particles, springs);
+        let Some(sc) = self.solver.self_collision else {
+            return base;
+        };
+        let c = &self.cloth;
+        let [rows, cols] = c.resolution.map(|n| f64::from(n.max(2) - 1));
+        let (dx, dy) = match (c.spacing, c.size) {
+            (Some([along_cols, along_rows]), _) => (f64::from(along_cols), f64::from(along_rows)),
+            (None, Some([w, h])) => (f64::from(w) / cols, f64::from(h) / rows),
+            (None, None) => (1.0 / cols, 1.0 / rows),
+        };
+        let reach = 2.0 * f64::from(sc.thickness);
+        let per_particle = (std::f64::consts::PI * reach * reach / (2.0 * dx * dy)).max(12.0);
+        // Saturating: a degenerate spacing (refused when the cloth is built) gives u64::MAX.
+        base.saturating_add((particles as f64 * (per_particle * 12.0 + 12.0)) as u64)
+    }
+
     fn check(&self) -> std::result::Result<(), Invalid> {
         positive("duration", self.duration)?;
         let c = &self.cloth;

@@ -145,6 +145,41 @@ fn cloths_f32_cannot_resolve_are_refused() {
     }
 }
 
+/// The memory estimate `cloth sim` checks against the memory available counts the
+/// self-collision pair list: without self-collision it is the particles' and springs'
+/// estimate; with a thickness t it adds about π(2t)²/(2·Δx·Δy) pairs of 12 bytes per
+/// particle (the candidates within twice the thickness on a flat sheet, at least 12), so the
+/// 256² drape with a 2 cm layer (4.3 spacings) needs about 90 MiB more (measured: the
+/// process peaked at 116 MiB against an estimate of 122 MiB for `scenes/mesh.toml`).
+#[test]
+fn memory_estimate_counts_the_self_collision_pairs() {
+    let sets = |s: &[&str]| s.iter().map(|x| (*x).to_string()).collect::<Vec<_>>();
+    let (plain, _) = scene::load("drape", &sets(&["cloth.resolution=[256, 256]"])).expect("drape");
+    let (particles, springs) = plain.counts();
+    assert_eq!(
+        plain.memory_estimate(),
+        scene::memory_estimate(particles, springs)
+    );
+    let (layered, _) = scene::load(
+        "drape",
+        &sets(&[
+            "cloth.resolution=[256, 256]",
+            "solver.self_collision={thickness=0.02}",
+        ]),
+    )
+    .expect("drape with self-collision");
+    let dx = 1.2_f64 / 255.0;
+    let pairs = std::f64::consts::PI * 0.04 * 0.04 / (2.0 * dx * dx);
+    let want = (particles as f64 * (pairs * 12.0 + 12.0)) as u64;
+    let extra = layered.memory_estimate() - plain.memory_estimate();
+    // The scene holds f32 lengths: the same to 10⁻⁶.
+    assert!(
+        extra.abs_diff(want) <= want / 1_000_000,
+        "{extra} bytes against {want}"
+    );
+    assert!((80 << 20..100 << 20).contains(&extra), "{extra} bytes");
+}
+
 /// `scenes/peer-ball.toml` is exactly the scene `presets::peer_ball(128)` computes from the
 /// peer README's formulas: same particles, masses, springs, parameters and collider.
 #[test]
