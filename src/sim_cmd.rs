@@ -10,7 +10,7 @@ use std::time::Instant;
 use crate::out::{out, outln};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use cloth_core::diagnostics::explicit_stability_limit_of;
+use cloth_core::diagnostics::{explicit_stability_limit_of, substeps_text};
 use cloth_core::scene::{self, BUILTIN, Scene};
 use cloth_core::{ClothError, SimState, SpringClass, StepStats};
 use serde::{Deserialize, Serialize};
@@ -274,18 +274,23 @@ pub fn check(args: &CheckArgs) -> ExitCode {
     let cfg = sim.config();
     let limit = explicit_stability_limit_of(cfg, sim.topology(), sim.particles());
     outln!("{}", summary(&scene));
-    let needed = (f64::from(cfg.dt) / f64::from(limit)).ceil();
-    let needed_text = if needed < 1e9 {
-        format!("{needed}")
+    // The estimate underflows f32 (zero) for an absurd stiffness or a feather-light cloth.
+    let (stable, needed_text) = if limit > 0.0 {
+        (
+            format!("{limit:.3e} s"),
+            substeps_text(f64::from(cfg.dt) / f64::from(limit)),
+        )
     } else {
-        format!("{needed:.1e}")
+        (
+            format!("below {:.1e} s", f32::MIN_POSITIVE),
+            "more than 1e38".to_string(),
+        )
     };
     outln!(
-        "dt={} s substeps={} (substep {:.3e} s); estimated stable substep for the explicit integrators: {:.3e} s ({needed_text} substeps per step)",
+        "dt={} s substeps={} (substep {:.3e} s); estimated stable substep for the explicit integrators: {stable} ({needed_text} substeps per step)",
         cfg.dt,
         cfg.substeps,
         cfg.substep_dt(),
-        limit,
     );
     // An explicit integrator far over its stability bound will blow up: say so before a
     // run. The bound is a sufficient one (Gershgorin's), up to about 1.5× below the true
@@ -294,15 +299,16 @@ pub fn check(args: &CheckArgs) -> ExitCode {
     let over = cfg.integrator.is_explicit() && ratio > 2.0;
     if over {
         let ratio_text = if ratio < 1e6 {
-            format!("{ratio:.1}")
+            format!("{ratio:.1}× the estimated stable {stable}")
+        } else if ratio.is_finite() {
+            format!("{ratio:.1e}× the estimated stable {stable}")
         } else {
-            format!("{ratio:.1e}")
+            format!("far over the estimated stable substep ({stable})")
         };
         eprintln!(
-            "warning: {} will likely go unstable: its substep {:.3e} s is {ratio_text}× the \
-             estimated stable {limit:.3e} s; raise `solver.substeps` to {needed_text} (at \
-             most {} are allowed), lower the stiffness or the damping, or use xpbd or \
-             implicit-euler",
+            "warning: {} will likely go unstable: its substep {:.3e} s is {ratio_text}; raise \
+             `solver.substeps` to {needed_text} (at most {} are allowed), lower the stiffness \
+             or the damping, or use xpbd or implicit-euler",
             cfg.integrator.name(),
             cfg.substep_dt(),
             cloth_core::config::MAX_SUBSTEPS

@@ -600,6 +600,22 @@ fn check_warns_of_an_explicit_step_past_its_stability_bound() {
     assert_eq!(code, 0, "{err}");
     assert!(!err.contains("warning"), "{err}");
     assert!(out.trim_end().ends_with(": ok"), "{out}");
+    // A stable substep that underflows f32 (10³⁰ N/m on a 10⁻³⁰ kg/m² cloth) is said as
+    // such, never as 0 s or "inf" substeps.
+    let (code, out, err) = cloth(&[
+        "check",
+        "drape",
+        "--set",
+        "cloth.density=1e-30",
+        "--set",
+        "material.warp={stiffness=1e30,damping=0}",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("below 1.2e-38 s (more than 1e38 substeps"), "{out}");
+    assert!(err.contains("far over the estimated stable substep"), "{err}");
+    for text in [&out, &err] {
+        assert!(!text.contains("inf") && !text.contains("NaN"), "{text}");
+    }
 }
 
 /// Ctrl-C (SIGINT) stops a run between frames: exit status 130 and a report with status

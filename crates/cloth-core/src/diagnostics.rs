@@ -779,29 +779,51 @@ pub(crate) fn instability_hint(config: &SimConfig, limit: f32) -> String {
              substep than h = {h:.3e} s"
         );
     }
+    if limit <= 0.0 {
+        // The estimate underflowed f32: no substep count comes near.
+        return format!(
+            "the stiffness is so far beyond the particles' masses that no substep resolves \
+             it (the stable substep is below {:.1e} s, f32's smallest); lower the stiffness or \
+             the damping, make the particles heavier (the cloth's density), or use xpbd or \
+             implicit-euler, which are stable at large steps",
+            f32::MIN_POSITIVE
+        );
+    }
     let needed = f64::from(config.dt) / f64::from(limit);
     let most = crate::config::MAX_SUBSTEPS;
+    let count = substeps_text(needed);
     if h > limit && needed > f64::from(most) {
         format!(
             "the time step is too large for the stiffness, and no allowed `substeps` is \
-             enough: substep h = {h:.3e} s, but this material needs h < ~{limit:.3e} s, \
-             about {needed:.1e} substeps per step where at most {most} are allowed; lower the \
-             stiffness or the damping, make the particles heavier (the cloth's density), shorten `dt`, or \
-             use xpbd or implicit-euler, which are stable at large steps"
+             enough: substep h = {h:.3e} s, but this material needs h < ~{limit:.3e} s, about \
+             {count} substeps per step where at most {most} are allowed; lower the stiffness \
+             or the damping, make the particles heavier (the cloth's density), shorten `dt`, \
+             or use xpbd or implicit-euler, which are stable at large steps"
         )
     } else if h > limit {
         format!(
             "the time step is too large for the stiffness: substep h = {h:.3e} s, but this \
-             material needs h < ~{limit:.3e} s; raise `substeps` to at least {}, or lower \
-             the stiffness or the damping",
-            needed.ceil()
+             material needs h < ~{limit:.3e} s; raise `substeps` to at least {count}, or lower \
+             the stiffness or the damping"
         )
     } else {
         format!(
             "the time step is likely too large for the stiffness or a collider moves too fast \
-             (substep h = {h:.3e} s, estimated limit {limit:.3e} s); raise `substeps` or \
-             lower the stiffness or the damping"
+             (substep h = {h:.3e} s, estimated limit {limit:.3e} s); raise `substeps` or lower \
+             the stiffness or the damping"
         )
+    }
+}
+
+/// A number of substeps per step for messages: `92`, or `1.4e29` past a billion. `needed` is
+/// finite (the caller handles a stable substep that underflowed to zero).
+#[must_use]
+pub fn substeps_text(needed: f64) -> String {
+    let needed = needed.ceil();
+    if needed < 1e9 {
+        format!("{needed}")
+    } else {
+        format!("{needed:.1e}")
     }
 }
 
