@@ -611,8 +611,14 @@ fn check_warns_of_an_explicit_step_past_its_stability_bound() {
         "material.warp={stiffness=1e30,damping=0}",
     ]);
     assert_eq!(code, 0, "{err}");
-    assert!(out.contains("below 1.2e-38 s (more than 1e38 substeps"), "{out}");
-    assert!(err.contains("far over the estimated stable substep"), "{err}");
+    assert!(
+        out.contains("below 1.2e-38 s (more than 1e38 substeps"),
+        "{out}"
+    );
+    assert!(
+        err.contains("far over the estimated stable substep"),
+        "{err}"
+    );
     for text in [&out, &err] {
         assert!(!text.contains("inf") && !text.contains("NaN"), "{text}");
     }
