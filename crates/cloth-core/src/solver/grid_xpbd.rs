@@ -383,9 +383,9 @@ impl XpbdGrid {
 
     /// Stage 1 of an XPBD substep on the grid, rows in parallel, on the arrays, with the
     /// reference's arithmetic in the reference's order (so the same bits): the external force
-    /// of every particle (weight, global damping capped at m/h ([`crate::forces::capped_damping`]),
-    /// then its share of the air force of each
-    /// adjacent triangle in triangle order), then `v ← v + h·f/m`, `start ← x`, `x ← x + h·v`,
+    /// of every particle (weight, global damping capped at m/h,
+    /// [`crate::forces::capped_damping`], then its share of the air force of each adjacent
+    /// triangle in triangle order), then `v ← v + h·f/m`, `start ← x`, `x ← x + h·v`,
     /// component by component as loops over the row that the compiler vectorises. One pass
     /// over bands of [`PREDICT_BAND`] rows: each row is predicted right after the air of the
     /// cell row below it (from that row and the next, neither predicted yet) is computed into
