@@ -819,4 +819,26 @@ mod tests {
         let next = super::step_ms(first, 60.0, 3);
         assert!((next - (0.9 * 10.0 + 0.1 * 20.0)).abs() < 1e-6, "{next}");
     }
+
+    /// Reset keeps the running configuration; one the rebuilt cloth refuses (here a
+    /// self-collision layer thicker than 16 grid spacings) is said in the status line and the
+    /// scene's own configuration runs instead, and a good one clears the message.
+    #[test]
+    fn a_refused_configuration_on_reset_is_said() {
+        let scene = crate::scene::SceneKind::builtin("sweep").expect("sweep");
+        let mut world = super::World::new(scene, 32, cloth_core::Integrator::Xpbd).expect("world");
+        let own = *world.sim.config();
+        let mut thick = own;
+        thick.self_collision = Some(cloth_core::SelfCollision {
+            thickness: 1.0,
+            ..cloth_core::SelfCollision::default()
+        });
+        world.reset(Some(thick));
+        let message = world.message.clone().expect("a message");
+        assert!(message.contains("kept the scene's settings"), "{message}");
+        assert!(message.contains("self_collision.thickness"), "{message}");
+        assert_eq!(*world.sim.config(), own);
+        world.reset(Some(own));
+        assert_eq!(world.message, None);
+    }
 }
