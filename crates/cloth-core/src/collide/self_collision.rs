@@ -188,7 +188,10 @@ impl SelfCollisionScratch {
             for dz in -1..=1 {
                 for dy in -1..=1 {
                     for dx in -1..=1 {
-                        let h = self.hash.hash(ci + IVec3::new(dx, dy, dz)) as usize;
+                        // Wrapping: a cell coordinate saturates at i32::MAX for a particle
+                        // far out or a tiny thickness, and its neighbour then wraps (the hash
+                        // wraps anyway; candidates are checked by distance below).
+                        let h = self.hash.hash(ci.wrapping_add(IVec3::new(dx, dy, dz))) as usize;
                         let (a, b) = (self.hash.start[h] as usize, self.hash.start[h + 1] as usize);
                         for &j in &self.hash.entries[a..b] {
                             let ju = j as usize;
