@@ -10,7 +10,7 @@ use std::time::Instant;
 use crate::out::{out, outln};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use cloth_core::diagnostics::{explicit_stability_limit_of, substeps_text};
+use cloth_core::diagnostics::{explicit_stability_limit_of, stable_substep_text, substeps_text};
 use cloth_core::scene::{self, BUILTIN, Scene};
 use cloth_core::{ClothError, SimState, SpringClass, StepStats};
 use serde::{Deserialize, Serialize};
@@ -275,16 +275,11 @@ pub fn check(args: &CheckArgs) -> ExitCode {
     let limit = explicit_stability_limit_of(cfg, sim.topology(), sim.particles());
     outln!("{}", summary(&scene));
     // The estimate underflows f32 (zero) for an absurd stiffness or a feather-light cloth.
-    let (stable, needed_text) = if limit > 0.0 {
-        (
-            format!("{limit:.3e} s"),
-            substeps_text(f64::from(cfg.dt) / f64::from(limit)),
-        )
+    let stable = stable_substep_text(limit);
+    let needed_text = if limit > 0.0 {
+        substeps_text(f64::from(cfg.dt) / f64::from(limit))
     } else {
-        (
-            format!("below {:.1e} s", f32::MIN_POSITIVE),
-            "more than 1e38".to_string(),
-        )
+        "more than 1e38".to_string()
     };
     outln!(
         "dt={} s substeps={} (substep {:.3e} s); estimated stable substep for the explicit integrators: {stable} ({needed_text} substeps per step)",

@@ -783,10 +783,10 @@ pub(crate) fn instability_hint(config: &SimConfig, limit: f32) -> String {
         // The estimate underflowed f32: no substep count comes near.
         return format!(
             "the stiffness is so far beyond the particles' masses that no substep resolves \
-             it (the stable substep is below {:.1e} s, f32's smallest); lower the stiffness or \
-             the damping, make the particles heavier (the cloth's density), or use xpbd or \
-             implicit-euler, which are stable at large steps",
-            f32::MIN_POSITIVE
+             it (the stable substep is {}, f32's smallest); lower the stiffness or the damping, \
+             make the particles heavier (the cloth's density), or use xpbd or implicit-euler, \
+             which are stable at large steps",
+            stable_substep_text(limit)
         );
     }
     let needed = f64::from(config.dt) / f64::from(limit);
@@ -812,6 +812,17 @@ pub(crate) fn instability_hint(config: &SimConfig, limit: f32) -> String {
              (substep h = {h:.3e} s, estimated limit {limit:.3e} s); raise `substeps` or lower \
              the stiffness or the damping"
         )
+    }
+}
+
+/// An estimated stable substep for messages: `1.824e-4 s`, or `below 1.2e-38 s` when the
+/// estimate underflowed f32 to zero (an absurd stiffness or a feather-light cloth).
+#[must_use]
+pub fn stable_substep_text(limit: f32) -> String {
+    if limit > 0.0 {
+        format!("{limit:.3e} s")
+    } else {
+        format!("below {:.1e} s", f32::MIN_POSITIVE)
     }
 }
 

@@ -1345,32 +1345,11 @@ impl Scene {
         }
         grid = grid.pin_indices(c.pins.indices.iter().copied());
         // The builder names its arguments `grid.*`; here they are the scene's `cloth.*` keys.
-        let cloth = grid.build().map_err(|e| match e {
-            ClothError::InvalidArgument {
-                name,
-                value,
-                allowed,
-            } => ClothError::InvalidArgument {
-                name: name.replacen("grid.", "cloth.", 1),
-                value,
-                allowed,
-            },
-            other => other,
-        })?;
+        let cloth = grid.build().map_err(|e| renamed(e, "grid.", "cloth."))?;
         let config = self.config(&cloth);
         // The configuration's `config.self_collision.*` are the scene's `solver.self_collision.*`.
-        let mut sim = Simulation::new(cloth, config).map_err(|e| match e {
-            ClothError::InvalidArgument {
-                name,
-                value,
-                allowed,
-            } => ClothError::InvalidArgument {
-                name: name.replacen("config.self_collision.", "solver.self_collision.", 1),
-                value,
-                allowed,
-            },
-            other => other,
-        })?;
+        let mut sim = Simulation::new(cloth, config)
+            .map_err(|e| renamed(e, "config.self_collision.", "solver.self_collision."))?;
         for (i, col) in self.colliders.iter().enumerate() {
             let shape = match col.kind {
                 ColliderKind::Sphere => Shape::Sphere {
@@ -1580,6 +1559,23 @@ const KNOWN_KEYS: &[&str] = &[
     "target",
     "fov_degrees",
 ];
+
+/// `e` with an argument named `from…` renamed `to…` (the scene's key for a builder's or a
+/// configuration's argument); any other error as it is.
+fn renamed(e: ClothError, from: &str, to: &str) -> ClothError {
+    match e {
+        ClothError::InvalidArgument {
+            name,
+            value,
+            allowed,
+        } if name.starts_with(from) => ClothError::InvalidArgument {
+            name: name.replacen(from, to, 1),
+            value,
+            allowed,
+        },
+        other => other,
+    }
+}
 
 fn de_error(source: &str, file: &str, e: &toml::de::Error) -> ClothError {
     let pos = e.span().map(|s| line_col(source, s.start));

@@ -9,7 +9,7 @@ use crate::error::{ClothError, Result, check};
 use crate::grid::Cloth;
 use crate::particles::Particles;
 use crate::solver::{Solver, SubstepCtx};
-use crate::topology::{SpringClass, SpringKind, Topology};
+use crate::topology::{SpringKind, Topology};
 
 /// A cloth simulation.
 ///
@@ -115,18 +115,23 @@ pub struct SimState {
 /// (a thickness of the cloth's whole size would make every pair a candidate: n² of them).
 pub const MAX_SELF_COLLISION_SPACINGS: f32 = 16.0;
 
+/// The cloth's largest structural (warp or weft) rest length, m: its coarsest grid spacing.
+fn largest_spacing(topology: &Topology) -> f32 {
+    topology
+        .springs_of(SpringKind::Warp)
+        .iter()
+        .chain(topology.springs_of(SpringKind::Weft))
+        .map(|s| s.rest_length)
+        .fold(0.0, f32::max)
+}
+
 /// The checks of a configuration that need the cloth: the self-collision thickness against
 /// the grid spacing ([`MAX_SELF_COLLISION_SPACINGS`]).
 fn check_for_cloth(config: &SimConfig, topology: &Topology) -> Result<()> {
     let Some(sc) = config.self_collision else {
         return Ok(());
     };
-    let spacing = SpringKind::ALL
-        .into_iter()
-        .filter(|k| k.class() == SpringClass::Structural)
-        .flat_map(|k| topology.springs_of(k))
-        .map(|s| s.rest_length)
-        .fold(0.0_f32, f32::max);
+    let spacing = largest_spacing(topology);
     let most = MAX_SELF_COLLISION_SPACINGS * spacing;
     if spacing > 0.0 && sc.thickness > most {
         return Err(ClothError::invalid(
@@ -500,13 +505,7 @@ impl Simulation {
     ) -> Result<crate::collide::intersect::SelfContact> {
         let range = range.unwrap_or_else(|| match self.config.self_collision {
             Some(sc) => sc.thickness,
-            None => self
-                .topology
-                .springs_of(SpringKind::Warp)
-                .iter()
-                .chain(self.topology.springs_of(SpringKind::Weft))
-                .map(|s| s.rest_length)
-                .fold(0.0, f32::max),
+            None => largest_spacing(&self.topology),
         });
         self.contact_check.run(
             &self.particles.position,
