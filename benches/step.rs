@@ -1,6 +1,7 @@
 //! The step loop, measured: the peer benchmark's cloth on a ball (128×128, symplectic Euler,
 //! 53 substeps of 3.125e-4 s per step) on the reference path and on the grid fast path with 1
-//! and 2 threads, the fast path at 32² … 512², and a 64×64 drape with each integrator.
+//! and 2 threads, the fast path at 32² … 512², a 64×64 drape with each integrator, implicit
+//! Euler's 128² drape on 1 and 2 threads, and XPBD's 256² drape.
 //!
 //! Throughput is reported in particle-substeps per second (criterion's "elements"). Every
 //! iteration steps a clone of the same prepared simulation, so runs compare.
@@ -96,6 +97,20 @@ fn drape(c: &mut Criterion) {
     }
 }
 
+/// Implicit Euler's drape as the `implicit-drape` scene runs it (128², 2 substeps per
+/// 1/60 s, CG to a relative residual of 10⁻³), warmed onto the ball, on 1 and 2 threads.
+fn implicit_drape(c: &mut Criterion) {
+    let mut sim = presets::drape(128, Integrator::ImplicitEuler).expect("drape scene");
+    let mut config = *sim.config();
+    config.substeps = 2;
+    config.implicit.tolerance = 1e-3;
+    config.implicit.max_iterations = 300;
+    sim.set_config(config).expect("config");
+    let sim = warmed(sim, 30);
+    bench_on(c, "implicit-drape-128/1t", &sim, 1, None);
+    bench_on(c, "implicit-drape-128/2t", &sim, 2, None);
+}
+
 /// The drape with XPBD at 256² (20 substeps, strain limits to 64 particles), warmed onto
 /// the ball: the reference path (storage-order Gauss–Seidel) on 1 thread, the grid path
 /// (coloured Gauss–Seidel over rows) on 1 and 2 threads; then the grid path with the chain
@@ -141,5 +156,5 @@ fn xpbd_drape(c: &mut Criterion) {
     bench_on(c, "drape-256/xpbd/chains-newton3-10/2t", &sim, 2, None);
 }
 
-criterion_group!(benches, peer_ball, drape, xpbd_drape);
+criterion_group!(benches, peer_ball, drape, implicit_drape, xpbd_drape);
 criterion_main!(benches);

@@ -18,19 +18,35 @@
 //!   normal velocity change that Coulomb friction uses (stick when |v_t| ≤ μ_s·e_n/m, else
 //!   slide losing μ_k·e_n/m), and particles that newly reach a collider during the substep are
 //!   projected out with the shared contact response.
-//! - Every sum runs in a fixed order, and the dot products of the CG accumulate in f64.
+//!
+//! **Parallel and deterministic.** Every pass runs on the current rayon pool over a fixed
+//! partition ([`PARTICLES_PER_TASK`] particles or [`SPRINGS_PER_TASK`] springs per task), so
+//! the bits never depend on the thread count or the schedule:
+//! - a product A·p is two passes: each spring's S·(p_a − p_b) into a per-spring array, then
+//!   each particle's sum over its incident springs in spring order (a list built once per
+//!   cloth), which adds the same terms in the same order as a sequential scatter would;
+//! - the assembly of the right-hand side and of the preconditioner is split the same way;
+//! - a dot product is accumulated in f64 within each task, and the tasks' partial sums are
+//!   added in task order.
 
 use glam::{Mat3, Vec3};
+use rayon::prelude::*;
 
 use super::SubstepCtx;
-use crate::collide::resolve_contacts;
+use crate::collide::resolve_contacts_in;
 use crate::forces::accumulate;
-use crate::topology::SpringKind;
+use crate::topology::{Spring, SpringKind};
+
+/// Particles per task of the parallel passes over particles (a fixed partition).
+const PARTICLES_PER_TASK: usize = 1024;
+/// Springs per task of the parallel passes over springs (a fixed partition).
+const SPRINGS_PER_TASK: usize = 4096;
 
 /// Per-particle velocity filter of the modified CG.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 enum Filter {
     /// Unconstrained.
+    #[default]
     Free,
     /// All three directions fixed (pinned).
     Fixed,
@@ -45,6 +61,55 @@ impl Filter {
             Filter::Free => p,
             Filter::Fixed => Vec3::ZERO,
             Filter::Normal(n, _) => p - n.dot(p) * n,
+        }
+    }
+}
+
+/// A symmetric 3×3 block: its diagonal and its entries above it.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Sym3 {
+    diag: Vec3,
+    /// (xy, xz, yz).
+    upper: Vec3,
+}
+
+impl Sym3 {
+    /// d·dᵀ.
+    #[inline]
+    fn outer(d: Vec3) -> Self {
+        Self {
+            diag: d * d,
+            upper: Vec3::new(d.x * d.y, d.x * d.z, d.y * d.z),
+        }
+    }
+
+    #[inline]
+    fn mul(self, p: Vec3) -> Vec3 {
+        let (a, u) = (self.diag, self.upper);
+        Vec3::new(
+            a.x * p.x + u.x * p.y + u.y * p.z,
+            u.x * p.x + a.y * p.y + u.z * p.z,
+            u.y * p.x + u.z * p.y + a.z * p.z,
+        )
+    }
+
+    fn to_mat3(self) -> Mat3 {
+        let (a, u) = (self.diag, self.upper);
+        Mat3::from_cols(
+            Vec3::new(a.x, u.x, u.y),
+            Vec3::new(u.x, a.y, u.z),
+            Vec3::new(u.y, u.z, a.z),
+        )
+    }
+}
+
+impl std::ops::Add for Sym3 {
+    type Output = Self;
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        Self {
+            diag: self.diag + o.diag,
+            upper: self.upper + o.upper,
         }
     }
 }
@@ -64,7 +129,11 @@ pub(crate) struct CgStats {
 #[derive(Debug, Clone, Default)]
 pub(crate) struct ImplicitScratch {
     /// Per spring: S = h·c·d·dᵀ + h²·K.
-    block: Vec<Mat3>,
+    block: Vec<Sym3>,
+    /// Per spring: h²·K·(v_b − v_a) during the assembly, then S·(p_a − p_b) in each product.
+    term: Vec<Vec3>,
+    /// Incident springs of every particle, built once per cloth.
+    incident: Incident,
     /// Inverse of each particle's diagonal block (the preconditioner).
     precond: Vec<Mat3>,
     filter: Vec<Filter>,
@@ -74,6 +143,8 @@ pub(crate) struct ImplicitScratch {
     c: Vec<Vec3>,
     q: Vec<Vec3>,
     s: Vec<Vec3>,
+    /// One partial sum of a dot product per task.
+    partial: Vec<f64>,
 }
 
 fn resize(v: &mut Vec<Vec3>, n: usize) {
@@ -81,18 +152,115 @@ fn resize(v: &mut Vec<Vec3>, n: usize) {
     v.resize(n, Vec3::ZERO);
 }
 
+/// The signed sum `acc + Σ ±term[s]` over the springs of `list` (+ where the particle is the
+/// spring's first end), in the list's order.
+#[inline]
+fn gather(list: &[u32], term: &[Vec3], mut acc: Vec3) -> Vec3 {
+    for &e in list {
+        let t = term[(e >> 1) as usize];
+        if e & 1 == 0 {
+            acc += t;
+        } else {
+            acc -= t;
+        }
+    }
+    acc
+}
+
+/// The partial sums added in task order.
+fn total(partial: &[f64]) -> f64 {
+    partial.iter().sum()
+}
+
+/// The springs incident to every particle, in spring order: those of particle i are
+/// `list[start[i]..start[i + 1]]`, each `spring << 1`, plus 1 when the particle is the
+/// spring's second end.
+#[derive(Debug, Clone, Default)]
+struct Incident {
+    start: Vec<u32>,
+    list: Vec<u32>,
+}
+
+impl Incident {
+    /// Builds the lists when the cloth changed (a counting sort by particle: every list comes
+    /// out in spring order).
+    fn build(&mut self, n: usize, springs: &[Spring]) {
+        if self.start.len() == n + 1 && self.list.len() == 2 * springs.len() {
+            return;
+        }
+        self.start.clear();
+        self.start.resize(n + 1, 0);
+        for s in springs {
+            self.start[s.a as usize + 1] += 1;
+            self.start[s.b as usize + 1] += 1;
+        }
+        for i in 0..n {
+            self.start[i + 1] += self.start[i];
+        }
+        self.list.clear();
+        self.list.resize(2 * springs.len(), 0);
+        let mut next: Vec<u32> = self.start[..n].to_vec();
+        for (j, s) in springs.iter().enumerate() {
+            let j = j as u32;
+            for (end, flag) in [(s.a, 0), (s.b, 1)] {
+                let slot = &mut next[end as usize];
+                self.list[*slot as usize] = j << 1 | flag;
+                *slot += 1;
+            }
+        }
+    }
+
+    /// The incident springs of particle `i`.
+    #[inline]
+    fn of(&self, i: usize) -> &[u32] {
+        &self.list[self.start[i] as usize..self.start[i + 1] as usize]
+    }
+}
+
 impl ImplicitScratch {
-    /// y = A·p over the free directions (unfiltered product).
-    fn multiply(&self, ctx: &SubstepCtx<'_>, diag: f32, p: &[Vec3], y: &mut [Vec3]) {
-        for ((y, &m), &p) in y.iter_mut().zip(&ctx.particles.mass).zip(p) {
-            *y = (m + diag) * p;
-        }
-        for (s, block) in ctx.topology.springs().iter().zip(&self.block) {
-            let (a, b) = (s.a as usize, s.b as usize);
-            let t = *block * (p[a] - p[b]);
-            y[a] += t;
-            y[b] -= t;
-        }
+    /// `term[s] = S_s·(p_a − p_b)` for every spring.
+    fn spring_products(&mut self, springs: &[Spring], p: &[Vec3]) {
+        self.term
+            .par_chunks_mut(SPRINGS_PER_TASK)
+            .zip(springs.par_chunks(SPRINGS_PER_TASK))
+            .zip(self.block.par_chunks(SPRINGS_PER_TASK))
+            .for_each(|((term, springs), block)| {
+                for ((t, s), b) in term.iter_mut().zip(springs).zip(block) {
+                    *t = b.mul(p[s.a as usize] - p[s.b as usize]);
+                }
+            });
+    }
+
+    /// y = A·p (`filtered`: then y is filtered too); returns p·y.
+    fn multiply(
+        &mut self,
+        ctx: &SubstepCtx<'_>,
+        diag: f32,
+        p: &[Vec3],
+        y: &mut [Vec3],
+        filtered: bool,
+    ) -> f64 {
+        self.spring_products(ctx.topology.springs(), p);
+        let (incident, term, filter) = (&self.incident, &self.term, &self.filter);
+        let mass = &ctx.particles.mass;
+        y.par_chunks_mut(PARTICLES_PER_TASK)
+            .zip(self.partial.par_iter_mut())
+            .enumerate()
+            .for_each(|(task, (y, partial))| {
+                let base = task * PARTICLES_PER_TASK;
+                let mut dot = 0.0f64;
+                for (k, y) in y.iter_mut().enumerate() {
+                    let i = base + k;
+                    let mut v = gather(incident.of(i), term, (mass[i] + diag) * p[i]);
+                    if filtered {
+                        v = filter[i].apply(v);
+                    }
+                    *y = v;
+                    dot += f64::from(p[i].dot(v));
+                }
+                *partial = dot;
+            });
+        total(&self.partial)
     }
 }
 
@@ -109,56 +277,82 @@ pub(super) fn substep(
     let settings = cfg.implicit;
     accumulate(cfg, ctx.topology, ctx.particles, ctx.wind, force);
 
-    // Right-hand side b = h·f + h²·(∂f/∂x)·v, the spring blocks S, the preconditioner.
+    let springs = ctx.topology.springs();
+    sc.incident.build(n, springs);
+    let tasks = n.div_ceil(PARTICLES_PER_TASK);
+    sc.partial.clear();
+    sc.partial.resize(tasks, 0.0);
+    sc.block.clear();
+    sc.block.resize(springs.len(), Sym3::default());
+    resize(&mut sc.term, springs.len());
+    for v in [
+        &mut sc.rhs,
+        &mut sc.dv,
+        &mut sc.r,
+        &mut sc.c,
+        &mut sc.q,
+        &mut sc.s,
+    ] {
+        resize(v, n);
+    }
+    sc.precond.clear();
+    sc.precond.resize(n, Mat3::ZERO);
+    sc.filter.clear();
+    sc.filter.resize(n, Filter::Free);
+
+    // 1. The spring blocks S and the terms h²·K·(v_b − v_a) of b = h·f + h²·(∂f/∂x)·v.
     let diag = if cfg.forces.damping {
         h * cfg.damping
     } else {
         0.0
     };
-    sc.block.clear();
-    sc.block.reserve(ctx.topology.springs().len());
-    resize(&mut sc.rhs, n);
-    for (b, &f) in sc.rhs.iter_mut().zip(force.iter()) {
-        *b = h * f;
-    }
-    sc.precond.clear();
-    sc.precond.extend(
-        ctx.particles
-            .mass
-            .iter()
-            .map(|&m| Mat3::from_diagonal(Vec3::splat(m + diag))),
-    );
-    let (x, v) = (&ctx.particles.position, &ctx.particles.velocity);
-    for kind in SpringKind::ALL {
+    let mut kinds = [(0usize, 0.0f32, 0.0f32); 4];
+    let mut end = 0;
+    for (slot, kind) in kinds.iter_mut().zip(SpringKind::ALL) {
         let p = cfg.material.params(kind);
         let k = if cfg.forces.springs { p.stiffness } else { 0.0 };
         let c = if cfg.forces.dashpots { p.damping } else { 0.0 };
-        for s in ctx.topology.springs_of(kind) {
-            let (a, b) = (s.a as usize, s.b as usize);
-            let l = x[b] - x[a];
-            let len = l.length();
-            if len <= 0.0 || (k == 0.0 && c == 0.0) {
-                sc.block.push(Mat3::ZERO);
-                continue;
-            }
-            let d = l / len;
-            let ddt = Mat3::from_cols(d * d.x, d * d.y, d * d.z);
-            let geometric = (1.0 - s.rest_length / len).max(0.0);
-            let stiff = k * (ddt + geometric * (Mat3::IDENTITY - ddt));
-            let kv = stiff * (v[b] - v[a]);
-            sc.rhs[a] += (h * h) * kv;
-            sc.rhs[b] -= (h * h) * kv;
-            let block = (h * c) * ddt + (h * h) * stiff;
-            sc.precond[a] += block;
-            sc.precond[b] += block;
-            sc.block.push(block);
-        }
+        end += ctx.topology.springs_of(kind).len();
+        *slot = (end, k, c);
     }
-    for m in &mut sc.precond {
-        *m = m.inverse();
+    {
+        let (x, v) = (&ctx.particles.position, &ctx.particles.velocity);
+        sc.block
+            .par_chunks_mut(SPRINGS_PER_TASK)
+            .zip(sc.term.par_chunks_mut(SPRINGS_PER_TASK))
+            .zip(springs.par_chunks(SPRINGS_PER_TASK))
+            .enumerate()
+            .for_each(|(task, ((block, term), chunk))| {
+                let base = task * SPRINGS_PER_TASK;
+                for (j, ((block, term), s)) in block.iter_mut().zip(term).zip(chunk).enumerate() {
+                    let (_, k, c) = kinds[kinds.iter().position(|e| base + j < e.0).unwrap_or(3)];
+                    let (a, b) = (s.a as usize, s.b as usize);
+                    let l = x[b] - x[a];
+                    let len = l.length();
+                    if len <= 0.0 || (k == 0.0 && c == 0.0) {
+                        *block = Sym3::default();
+                        *term = Vec3::ZERO;
+                        continue;
+                    }
+                    let d = l / len;
+                    let dd = Sym3::outer(d);
+                    let geometric = (1.0 - s.rest_length / len).max(0.0);
+                    // K = k·(d·dᵀ + g·(I − d·dᵀ)).
+                    let stiff = Sym3 {
+                        diag: k * (dd.diag + geometric * (Vec3::ONE - dd.diag)),
+                        upper: k * (dd.upper - geometric * dd.upper),
+                    };
+                    *term = (h * h) * stiff.mul(v[b] - v[a]);
+                    *block = Sym3 {
+                        diag: (h * c) * dd.diag + (h * h) * stiff.diag,
+                        upper: (h * c) * dd.upper + (h * h) * stiff.upper,
+                    };
+                }
+            });
     }
 
-    // Filters: pins fixed, resting contacts constrained along their normal. A contact counts
+    // 2. Per particle: the right-hand side, the preconditioner, the filter (pins fixed,
+    // resting contacts constrained along their normal) and the start of Δv. A contact counts
     // as resting when the particle is within the slack of the contact surface (plus the
     // distance gravity pulls it in one substep) and leaves it slower than gravity would stop
     // it within the substep: otherwise it would fall back in during the substep and be
@@ -168,92 +362,140 @@ pub(super) fn substep(
     } else {
         0.0
     };
-    sc.filter.clear();
-    resize(&mut sc.dv, n);
-    for i in 0..n {
-        if ctx.particles.inv_mass[i] == 0.0 {
-            sc.filter.push(Filter::Fixed);
-            continue;
-        }
-        let mut filter = Filter::Free;
-        for (ci, col) in ctx.colliders.iter().enumerate() {
-            let (dist, nrm) = col.shape.distance_within(x[i], col.contact_range());
-            let slack = 0.1 * col.thickness + 1e-5 + g_h * h;
-            if dist - col.thickness < slack {
-                let vn = (v[i] - col.velocity_at(x[i])).dot(nrm);
-                if vn <= g_h {
-                    // Δv·n = −v_rel·n: the new normal velocity equals the collider's.
-                    sc.dv[i] = -vn * nrm;
-                    filter = Filter::Normal(nrm, ci as u32);
-                    break;
+    {
+        let (incident, term, block) = (&sc.incident, &sc.term, &sc.block);
+        let p = &*ctx.particles;
+        let colliders = ctx.colliders;
+        let force = &*force;
+        sc.rhs
+            .par_chunks_mut(PARTICLES_PER_TASK)
+            .zip(sc.precond.par_chunks_mut(PARTICLES_PER_TASK))
+            .zip(sc.filter.par_chunks_mut(PARTICLES_PER_TASK))
+            .zip(sc.dv.par_chunks_mut(PARTICLES_PER_TASK))
+            .enumerate()
+            .for_each(|(task, (((rhs, precond), filter), dv))| {
+                let base = task * PARTICLES_PER_TASK;
+                for (k, (((rhs, precond), filter), dv)) in
+                    rhs.iter_mut().zip(precond).zip(filter).zip(dv).enumerate()
+                {
+                    let i = base + k;
+                    let list = incident.of(i);
+                    *rhs = gather(list, term, h * force[i]);
+                    let mut sum = Sym3 {
+                        diag: Vec3::splat(p.mass[i] + diag),
+                        upper: Vec3::ZERO,
+                    };
+                    for &e in list {
+                        sum = sum + block[(e >> 1) as usize];
+                    }
+                    *precond = sum.to_mat3().inverse();
+                    *filter = Filter::Free;
+                    if p.inv_mass[i] == 0.0 {
+                        *filter = Filter::Fixed;
+                        continue;
+                    }
+                    let (x, v) = (p.position[i], p.velocity[i]);
+                    for (ci, col) in colliders.iter().enumerate() {
+                        let (dist, nrm) = col.shape.distance_within(x, col.contact_range());
+                        let slack = 0.1 * col.thickness + 1e-5 + g_h * h;
+                        if dist - col.thickness < slack {
+                            let vn = (v - col.velocity_at(x)).dot(nrm);
+                            if vn <= g_h {
+                                // Δv·n = −v_rel·n: the new normal velocity equals the
+                                // collider's.
+                                *dv = -vn * nrm;
+                                *filter = Filter::Normal(nrm, ci as u32);
+                                break;
+                            }
+                        }
+                    }
                 }
-            }
-        }
-        sc.filter.push(filter);
+            });
     }
 
-    // Modified PCG (Baraff & Witkin 1998, §5.3).
-    let filt = |f: &[Filter], v: &mut [Vec3]| {
-        for (v, f) in v.iter_mut().zip(f) {
-            *v = f.apply(*v);
-        }
-    };
-    let dot = |a: &[Vec3], b: &[Vec3]| -> f64 {
-        a.iter().zip(b).map(|(a, b)| f64::from(a.dot(*b))).sum()
-    };
-    resize(&mut sc.r, n);
-    resize(&mut sc.c, n);
-    resize(&mut sc.q, n);
-    resize(&mut sc.s, n);
-    // δ0 from the filtered, preconditioned right-hand side.
-    let mut tmp = std::mem::take(&mut sc.s);
-    tmp.copy_from_slice(&sc.rhs);
-    filt(&sc.filter, &mut tmp);
-    for (c, (m, t)) in sc.c.iter_mut().zip(sc.precond.iter().zip(&tmp)) {
-        *c = *m * *t;
-    }
-    let delta0 = dot(&tmp, &sc.c);
-    sc.s = tmp;
+    // 3. Modified PCG (Baraff & Witkin 1998, §5.3).
+    // δ0 from the filtered, preconditioned right-hand side: s = filter(b), c = P·s.
+    sc.s.par_chunks_mut(PARTICLES_PER_TASK)
+        .zip(sc.c.par_chunks_mut(PARTICLES_PER_TASK))
+        .zip(sc.rhs.par_chunks(PARTICLES_PER_TASK))
+        .zip(sc.precond.par_chunks(PARTICLES_PER_TASK))
+        .zip(sc.filter.par_chunks(PARTICLES_PER_TASK))
+        .zip(sc.partial.par_iter_mut())
+        .for_each(|(((((s, c), b), m), f), partial)| {
+            let mut dot = 0.0f64;
+            for ((((s, c), b), m), f) in s.iter_mut().zip(c).zip(b).zip(m).zip(f) {
+                *s = f.apply(*b);
+                *c = *m * *s;
+                dot += f64::from(s.dot(*c));
+            }
+            *partial = dot;
+        });
+    let delta0 = total(&sc.partial);
+    // r = filter(b − A·Δv), c = filter(P·r).
     let mut q = std::mem::take(&mut sc.q);
-    sc.multiply(ctx, diag, &sc.dv, &mut q);
-    for ((r, b), aq) in sc.r.iter_mut().zip(&sc.rhs).zip(&q) {
-        *r = *b - *aq;
-    }
-    filt(&sc.filter, &mut sc.r);
-    for (c, (m, r)) in sc.c.iter_mut().zip(sc.precond.iter().zip(&sc.r)) {
-        *c = *m * *r;
-    }
-    filt(&sc.filter, &mut sc.c);
-    let mut delta = dot(&sc.r, &sc.c);
+    let dv = std::mem::take(&mut sc.dv);
+    sc.multiply(ctx, diag, &dv, &mut q, false);
+    sc.dv = dv;
+    sc.r.par_chunks_mut(PARTICLES_PER_TASK)
+        .zip(sc.c.par_chunks_mut(PARTICLES_PER_TASK))
+        .zip(sc.rhs.par_chunks(PARTICLES_PER_TASK))
+        .zip(q.par_chunks(PARTICLES_PER_TASK))
+        .zip(sc.precond.par_chunks(PARTICLES_PER_TASK))
+        .zip(sc.filter.par_chunks(PARTICLES_PER_TASK))
+        .zip(sc.partial.par_iter_mut())
+        .for_each(|((((((r, c), b), aq), m), f), partial)| {
+            let mut dot = 0.0f64;
+            for (((((r, c), b), aq), m), f) in r.iter_mut().zip(c).zip(b).zip(aq).zip(m).zip(f) {
+                *r = f.apply(*b - *aq);
+                *c = f.apply(*m * *r);
+                dot += f64::from(r.dot(*c));
+            }
+            *partial = dot;
+        });
+    let mut delta = total(&sc.partial);
     let tol2 = f64::from(settings.tolerance) * f64::from(settings.tolerance);
     let mut iterations = 0;
     while delta > tol2 * delta0 && iterations < settings.max_iterations {
-        sc.multiply(ctx, diag, &sc.c, &mut q);
-        filt(&sc.filter, &mut q);
-        let cq = dot(&sc.c, &q);
+        // q = filter(A·c), c·q.
+        let c = std::mem::take(&mut sc.c);
+        let cq = sc.multiply(ctx, diag, &c, &mut q, true);
+        sc.c = c;
         if cq <= 0.0 {
             break;
         }
         let alpha = (delta / cq) as f32;
-        for ((dv, r), (c, q)) in sc
-            .dv
-            .iter_mut()
-            .zip(sc.r.iter_mut())
-            .zip(sc.c.iter().zip(&q))
-        {
-            *dv += alpha * *c;
-            *r -= alpha * *q;
-        }
-        for (s, (m, r)) in sc.s.iter_mut().zip(sc.precond.iter().zip(&sc.r)) {
-            *s = *m * *r;
-        }
+        // Δv += α·c, r −= α·q, s = P·r, r·s.
+        sc.dv
+            .par_chunks_mut(PARTICLES_PER_TASK)
+            .zip(sc.r.par_chunks_mut(PARTICLES_PER_TASK))
+            .zip(sc.s.par_chunks_mut(PARTICLES_PER_TASK))
+            .zip(sc.c.par_chunks(PARTICLES_PER_TASK))
+            .zip(q.par_chunks(PARTICLES_PER_TASK))
+            .zip(sc.precond.par_chunks(PARTICLES_PER_TASK))
+            .zip(sc.partial.par_iter_mut())
+            .for_each(|((((((dv, r), s), c), q), m), partial)| {
+                let mut dot = 0.0f64;
+                for (((((dv, r), s), c), q), m) in dv.iter_mut().zip(r).zip(s).zip(c).zip(q).zip(m)
+                {
+                    *dv += alpha * *c;
+                    *r -= alpha * *q;
+                    *s = *m * *r;
+                    dot += f64::from(r.dot(*s));
+                }
+                *partial = dot;
+            });
         let delta_old = delta;
-        delta = dot(&sc.r, &sc.s);
+        delta = total(&sc.partial);
         let beta = (delta / delta_old) as f32;
-        for (c, s) in sc.c.iter_mut().zip(&sc.s) {
-            *c = *s + beta * *c;
-        }
-        filt(&sc.filter, &mut sc.c);
+        // c = filter(s + β·c).
+        sc.c.par_chunks_mut(PARTICLES_PER_TASK)
+            .zip(sc.s.par_chunks(PARTICLES_PER_TASK))
+            .zip(sc.filter.par_chunks(PARTICLES_PER_TASK))
+            .for_each(|((c, s), f)| {
+                for ((c, s), f) in c.iter_mut().zip(s).zip(f) {
+                    *c = f.apply(*s + beta * *c);
+                }
+            });
         iterations += 1;
     }
     let residual = if delta0 > 0.0 {
@@ -267,35 +509,57 @@ pub(super) fn substep(
         converged: delta <= tol2 * delta0,
     };
 
-    // Constraint impulses e = A·Δv − b on contacts, for friction.
-    sc.multiply(ctx, diag, &sc.dv, &mut q);
+    // 4. Constraint impulses e = A·Δv − b on contacts, for friction; the new velocities and
+    // positions; then the contacts the substep reached.
+    let dv = std::mem::take(&mut sc.dv);
+    sc.multiply(ctx, diag, &dv, &mut q, false);
+    sc.dv = dv;
     sc.q = q;
+    let colliders = ctx.colliders;
     let p = &mut *ctx.particles;
-    for i in 0..n {
-        let mut v_new = p.velocity[i] + sc.dv[i];
-        if let Filter::Normal(nrm, ci) = sc.filter[i] {
-            let col = &ctx.colliders[ci as usize];
-            let impulse = (sc.q[i] - sc.rhs[i]).dot(nrm).max(0.0);
-            let dvn = impulse * p.inv_mass[i];
-            let v_rel = v_new - col.velocity_at(p.position[i]);
-            let vt = v_rel - v_rel.dot(nrm) * nrm;
-            let vt_len = vt.length();
-            let fr = col.friction;
-            let vt_new = if vt_len <= fr.static_coefficient * dvn {
-                Vec3::ZERO
-            } else {
-                vt * (1.0 - fr.kinetic_coefficient * dvn / vt_len).max(0.0)
-            };
-            v_new += vt_new - vt;
-        }
-        p.velocity[i] = v_new;
-        p.position[i] += h * v_new;
-    }
-    resolve_contacts(ctx.colliders, p, h, ctx.contacts);
-    let constrained = sc
+    p.position
+        .par_chunks_mut(PARTICLES_PER_TASK)
+        .zip(p.velocity.par_chunks_mut(PARTICLES_PER_TASK))
+        .zip(p.inv_mass.par_chunks(PARTICLES_PER_TASK))
+        .zip(sc.dv.par_chunks(PARTICLES_PER_TASK))
+        .zip(sc.filter.par_chunks(PARTICLES_PER_TASK))
+        .zip(sc.q.par_chunks(PARTICLES_PER_TASK))
+        .zip(sc.rhs.par_chunks(PARTICLES_PER_TASK))
+        .for_each(|((((((x, v), w), dv), f), aq), b)| {
+            for ((((((x, v), &w), dv), f), aq), b) in
+                x.iter_mut().zip(v).zip(w).zip(dv).zip(f).zip(aq).zip(b)
+            {
+                let mut v_new = *v + *dv;
+                if let Filter::Normal(nrm, ci) = *f {
+                    let col = &colliders[ci as usize];
+                    let impulse = (*aq - *b).dot(nrm).max(0.0);
+                    let dvn = impulse * w;
+                    let v_rel = v_new - col.velocity_at(*x);
+                    let vt = v_rel - v_rel.dot(nrm) * nrm;
+                    let vt_len = vt.length();
+                    let fr = col.friction;
+                    let vt_new = if vt_len <= fr.static_coefficient * dvn {
+                        Vec3::ZERO
+                    } else {
+                        vt * (1.0 - fr.kinetic_coefficient * dvn / vt_len).max(0.0)
+                    };
+                    v_new += vt_new - vt;
+                }
+                *v = v_new;
+                *x += h * v_new;
+            }
+        });
+    let contacts: u32 = p
+        .position
+        .par_chunks_mut(PARTICLES_PER_TASK)
+        .zip(p.velocity.par_chunks_mut(PARTICLES_PER_TASK))
+        .zip(p.inv_mass.par_chunks(PARTICLES_PER_TASK))
+        .map(|((x, v), w)| resolve_contacts_in(colliders, x, v, w, h))
+        .sum();
+    let constrained: u32 = sc
         .filter
-        .iter()
-        .filter(|f| matches!(f, Filter::Normal(..)))
-        .count();
-    ctx.contacts.contacts += constrained as u32;
+        .par_chunks(PARTICLES_PER_TASK)
+        .map(|f| f.iter().filter(|f| matches!(f, Filter::Normal(..))).count() as u32)
+        .sum();
+    ctx.contacts.contacts = contacts + constrained;
 }
