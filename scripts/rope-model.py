@@ -24,6 +24,13 @@ Methods of the chain solve:
            over its two springs, g_k = max(-λ_k, 0)/|d_k|, so the system stays tridiagonal
            (e.g. geo:4).
 
+Any method with the suffix +tether (thirty-third round) adds long-range attachments to the
+particles in contact: each particle not in contact at the substep's start is pulled onto the
+sphere of radius |i - a|·spacing around its nearest such particle a on each side along the
+chain (a kept in place), when it is farther. Where (environment TETHER_AT): after the
+prediction (pre), after each round's solves (post), or both (both, the default); e.g.
+dual+tether, geo:4+tether.
+
 Two diagnostics of the landing (thirty-first round):
   front    the run with the dual solve, printing also how many particles the contact front
            (the outermost particle on the cylinder) passes per substep while it goes from 3
@@ -45,6 +52,9 @@ import sys
 import numpy as np
 from scipy.linalg import solve_banded
 
+import os
+
+TETHER_AT = os.environ.get("TETHER_AT", "both")
 RHO, K, RC, MU = 0.2, 400.0, 0.308, (0.6, 0.5)
 
 
@@ -153,6 +163,30 @@ def kkt(x, lam, xt, rest, m, alpha):
     return x + dx, lam + sol[4 * k + 3]
 
 
+def tethers(x, anchors, rest):
+    """Each particle not an anchor is pulled onto the sphere of radius |i - a|·rest around
+    its nearest anchor a along the chain (on each side), when it is farther (the anchor kept
+    where it is): long-range attachments to the particles in contact."""
+    n = len(x)
+    idx = np.arange(n)
+    if not anchors.any():
+        return x
+    a_idx = np.flatnonzero(anchors)
+    # nearest anchor on the left and on the right of every particle
+    pos = np.searchsorted(a_idx, idx)
+    for side in (pos - 1, pos):
+        ok = (side >= 0) & (side < len(a_idx))
+        a = a_idx[np.clip(side, 0, len(a_idx) - 1)]
+        ok &= ~anchors
+        d = x - x[a]
+        ln = np.linalg.norm(d, axis=1)
+        lim = np.abs(idx - a) * rest
+        over = ok & (ln > lim)
+        scale = np.where(over, lim / np.maximum(ln, 1e-30), 1.0)
+        x = x[a] + d * scale[:, None]
+    return x
+
+
 def strain(x, rest):
     return np.linalg.norm(x[1:] - x[:-1], axis=1) / rest - 1
 
@@ -172,6 +206,9 @@ def run(method, n, rounds, newton, substeps, seconds=3.0, seed=1, front=None, st
     x[:, 2] = 1e-4 * rng.standard_normal(n)
     v = np.zeros((n, 3))
     g = np.array([0.0, -9.81, 0.0])
+    tether = method.endswith("+tether")
+    if tether:
+        method = method[: -len("+tether")]
     if method.startswith("geo:"):
         scale = float(method[4:])
         solve = lambda *a: geo(*a, scale)  # noqa: E731
@@ -191,11 +228,16 @@ def run(method, n, rounds, newton, substeps, seconds=3.0, seed=1, front=None, st
             if stop == frame:
                 return x0, xt, rest, m, h
             x, lam = xt.copy(), np.zeros(n - 1)
+            anchors = np.hypot(x0[:, 0], x0[:, 1]) < RC + 1e-7 if tether else None
+            if tether and TETHER_AT in ("pre", "both"):
+                x = tethers(x, anchors, rest)
             for r in range(rounds):
                 if r > 0:
                     x = contact(x, x0)
                 for _ in range(newton):
                     x, lam = solve(x, lam, xt, rest, m, alpha)
+                if tether and TETHER_AT in ("post", "both"):
+                    x = tethers(x, anchors, rest)
             x = contact(x, x0)
             v = (x - x0) / h
             if not np.isfinite(x).all() or np.abs(v).max() > 1e3:

@@ -65,8 +65,9 @@ pub struct SimArgs {
     pub report: Option<PathBuf>,
     /// Worker threads, 1 ..= 256. Results are bit-identical for every count: the explicit
     /// integrators' grid fast path cuts the rows into one band per thread and sums every
-    /// force in a fixed order; XPBD's grid path projects colours of disjoint springs (recorded
-    /// in the report, with the kernel that ran).
+    /// force in a fixed order; XPBD's grid path projects colours of disjoint springs; implicit
+    /// Euler splits its passes into fixed tasks and adds their partial sums in task order
+    /// (recorded in the report, with the kernel that ran).
     #[arg(long, value_name = "N", default_value = "1", value_parser = parse_threads)]
     pub threads: usize,
     /// The grid paths' kernel: reference, portable, avx2 or avx512 (default: the widest this
