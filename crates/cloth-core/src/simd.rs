@@ -31,6 +31,7 @@ use crate::error::{ClothError, Result};
 use crate::solver::chains;
 use crate::solver::grid_kernel::{self, Band, BandResult, Dest, Job};
 use crate::solver::grid_xpbd::{self, AirCoefficients, Shared};
+use crate::solver::implicit::grid;
 
 /// Which code runs the substeps of the explicit integrators (forward Euler, symplectic
 /// Euler, position Verlet) on a grid cloth.
@@ -142,7 +143,7 @@ pub fn kernel() -> Kernel {
 }
 
 /// The kernel that steps `sim` on this thread: [`kernel`] when a grid fast path applies (an
-/// explicit integrator on a cloth built by [`crate::GridBuilder`], or XPBD
+/// explicit integrator or implicit Euler on a cloth built by [`crate::GridBuilder`], or XPBD
 /// on such a cloth without self-collision or tethers to pins), [`Kernel::Reference`]
 /// otherwise.
 #[must_use]
@@ -152,7 +153,13 @@ pub fn kernel_for(sim: &crate::Simulation) -> Kernel {
     let xpbd = cfg.integrator == crate::Integrator::Xpbd
         && k != Kernel::Reference
         && grid_xpbd::applies(cfg, sim.topology(), sim.particles().any_pinned());
-    if xpbd || grid_kernel::applies(k, cfg.integrator, sim.topology()) {
+    let implicit = cfg.integrator == crate::Integrator::ImplicitEuler
+        && k != Kernel::Reference
+        && sim
+            .topology()
+            .grid()
+            .is_some_and(|(rows, cols)| rows >= 2 && cols >= 2);
+    if xpbd || implicit || grid_kernel::applies(k, cfg.integrator, sim.topology()) {
         k
     } else {
         Kernel::Reference
@@ -224,6 +231,48 @@ macro_rules! dispatched {
             $generic($($arg),*)
         }
     };
+}
+
+dispatched! {
+    /// [`grid::products`] (implicit Euler's spring terms of one class) compiled for `kernel`.
+    fn implicit_products / implicit_products_avx2 / implicit_products_avx512(
+        job: &grid::Products<'_>,
+        term: &mut [Vec<f32>; 3],
+    ) = grid::products;
+}
+
+dispatched! {
+    /// [`grid::band`] (a band of implicit Euler's product A·p) compiled for `kernel`.
+    fn implicit_band / implicit_band_avx2 / implicit_band_avx512(
+        job: &grid::BandJob<'_>,
+        base: usize,
+        y: [&mut [f32]; 3],
+        dots: &mut [f32],
+    ) = grid::band;
+}
+
+dispatched! {
+    /// [`grid::update`] (implicit Euler's CG update; `out` is Δv, r and s) compiled for
+    /// `kernel`.
+    fn implicit_update / implicit_update_avx2 / implicit_update_avx512(
+        alpha: f32,
+        out: [[&mut [f32]; 3]; 3],
+        c: [&[f32]; 3],
+        q: [&[f32]; 3],
+        m: [&[f32]; 9],
+        dots: &mut [f32],
+    ) = grid::update;
+}
+
+dispatched! {
+    /// [`grid::direction`] (implicit Euler's next CG direction) compiled for `kernel`.
+    fn implicit_direction / implicit_direction_avx2 / implicit_direction_avx512(
+        beta: f32,
+        c: [&mut [f32]; 3],
+        s: [&[f32]; 3],
+        kind: &[u8],
+        normal: [&[f32]; 3],
+    ) = grid::direction;
 }
 
 dispatched! {

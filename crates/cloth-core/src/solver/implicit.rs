@@ -32,8 +32,11 @@
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
+pub(crate) mod grid;
+
 use super::SubstepCtx;
-use crate::collide::resolve_contacts_in;
+use crate::collide::{Collider, resolve_contacts_in};
+use crate::config::SimConfig;
 use crate::forces::accumulate;
 use crate::topology::{Spring, SpringKind};
 
@@ -143,8 +146,12 @@ pub(crate) struct ImplicitScratch {
     c: Vec<Vec3>,
     q: Vec<Vec3>,
     s: Vec<Vec3>,
+    /// The terms of a dot product, one per particle (summed by [`reduce`]).
+    dots: Vec<f32>,
     /// One partial sum of a dot product per task.
     partial: Vec<f64>,
+    /// The grid path's scratch.
+    grid: grid::GridScratch,
 }
 
 fn resize(v: &mut Vec<Vec3>, n: usize) {
@@ -167,8 +174,31 @@ fn gather(list: &[u32], term: &[Vec3], mut acc: Vec3) -> Vec3 {
     acc
 }
 
-/// The partial sums added in task order.
-fn total(partial: &[f64]) -> f64 {
+/// Accumulators of a task's sum.
+const SUM_LANES: usize = 16;
+
+/// The sum of the per-particle values `d` (the terms of a dot product), in f64 and in a
+/// fixed order whatever the thread count: within each task of [`PARTICLES_PER_TASK`]
+/// particles, entry k goes to accumulator k mod [`SUM_LANES`] and the accumulators are added
+/// in order; then the tasks' sums (`partial`, one per task) are added in task order. Both
+/// paths sum their dot products with it (so the grid path's sums are the reference's).
+pub(super) fn reduce(d: &[f32], partial: &mut [f64]) -> f64 {
+    partial
+        .par_iter_mut()
+        .zip(d.par_chunks(PARTICLES_PER_TASK))
+        .for_each(|(p, d)| {
+            let mut acc = [0.0f64; SUM_LANES];
+            let mut lanes = d.chunks_exact(SUM_LANES);
+            for lane in &mut lanes {
+                for (a, &x) in acc.iter_mut().zip(lane) {
+                    *a += f64::from(x);
+                }
+            }
+            for (a, &x) in acc.iter_mut().zip(lanes.remainder()) {
+                *a += f64::from(x);
+            }
+            *p = acc.iter().sum();
+        });
     partial.iter().sum()
 }
 
@@ -244,24 +274,130 @@ impl ImplicitScratch {
         let (incident, term, filter) = (&self.incident, &self.term, &self.filter);
         let mass = &ctx.particles.mass;
         y.par_chunks_mut(PARTICLES_PER_TASK)
-            .zip(self.partial.par_iter_mut())
+            .zip(self.dots.par_chunks_mut(PARTICLES_PER_TASK))
             .enumerate()
-            .for_each(|(task, (y, partial))| {
+            .for_each(|(task, (y, dots))| {
                 let base = task * PARTICLES_PER_TASK;
-                let mut dot = 0.0f64;
-                for (k, y) in y.iter_mut().enumerate() {
+                for (k, (y, dot)) in y.iter_mut().zip(dots).enumerate() {
                     let i = base + k;
                     let mut v = gather(incident.of(i), term, (mass[i] + diag) * p[i]);
                     if filtered {
                         v = filter[i].apply(v);
                     }
                     *y = v;
-                    dot += f64::from(p[i].dot(v));
+                    *dot = p[i].dot(v);
                 }
-                *partial = dot;
             });
-        total(&self.partial)
+        reduce(&self.dots, &mut self.partial)
     }
+}
+
+/// The stiffness and damping coefficient of a spring kind, N/m and N·s/m, with the force
+/// switches applied.
+fn spring_params(cfg: &SimConfig, kind: SpringKind) -> (f32, f32) {
+    let p = cfg.material.params(kind);
+    let k = if cfg.forces.springs { p.stiffness } else { 0.0 };
+    let c = if cfg.forces.dashpots { p.damping } else { 0.0 };
+    (k, c)
+}
+
+/// One spring's block S = h·c·d·dᵀ + h²·K and its term h²·K·(v_b − v_a) of the right-hand
+/// side (both zero for a spring of zero length, or with neither stiffness nor damping).
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn assemble(
+    xa: Vec3,
+    xb: Vec3,
+    va: Vec3,
+    vb: Vec3,
+    rest: f32,
+    k: f32,
+    c: f32,
+    h: f32,
+) -> (Sym3, Vec3) {
+    let l = xb - xa;
+    let len = l.length();
+    if len <= 0.0 || (k == 0.0 && c == 0.0) {
+        return (Sym3::default(), Vec3::ZERO);
+    }
+    let d = l / len;
+    let dd = Sym3::outer(d);
+    let geometric = (1.0 - rest / len).max(0.0);
+    // K = k·(d·dᵀ + g·(I − d·dᵀ)).
+    let stiff = Sym3 {
+        diag: k * (dd.diag + geometric * (Vec3::ONE - dd.diag)),
+        upper: k * (dd.upper - geometric * dd.upper),
+    };
+    let term = (h * h) * stiff.mul(vb - va);
+    let block = Sym3 {
+        diag: (h * c) * dd.diag + (h * h) * stiff.diag,
+        upper: (h * c) * dd.upper + (h * h) * stiff.upper,
+    };
+    (block, term)
+}
+
+/// A particle's filter and the start of its Δv: pinned, fixed; touching a collider at rest
+/// (see the substep's stage 2), its normal velocity constrained to the collider's; otherwise
+/// free.
+#[inline]
+fn constrain(
+    x: Vec3,
+    v: Vec3,
+    inv_mass: f32,
+    colliders: &[Collider],
+    h: f32,
+    g_h: f32,
+) -> (Filter, Vec3) {
+    if inv_mass == 0.0 {
+        return (Filter::Fixed, Vec3::ZERO);
+    }
+    for (ci, col) in colliders.iter().enumerate() {
+        let (dist, nrm) = col.shape.distance_within(x, col.contact_range());
+        let slack = 0.1 * col.thickness + 1e-5 + g_h * h;
+        if dist - col.thickness < slack {
+            let vn = (v - col.velocity_at(x)).dot(nrm);
+            if vn <= g_h {
+                // Δv·n = −v_rel·n: the new normal velocity equals the collider's.
+                return (Filter::Normal(nrm, ci as u32), -vn * nrm);
+            }
+        }
+    }
+    (Filter::Free, Vec3::ZERO)
+}
+
+/// A particle's new velocity and position after the solve: v + Δv, with Coulomb friction on
+/// a constrained contact from its constraint impulse e = (A·Δv − b)·n (`aq` = A·Δv).
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn finish(
+    x: &mut Vec3,
+    v: &mut Vec3,
+    w: f32,
+    dv: Vec3,
+    filter: Filter,
+    aq: Vec3,
+    b: Vec3,
+    colliders: &[Collider],
+    h: f32,
+) {
+    let mut v_new = *v + dv;
+    if let Filter::Normal(nrm, ci) = filter {
+        let col = &colliders[ci as usize];
+        let impulse = (aq - b).dot(nrm).max(0.0);
+        let dvn = impulse * w;
+        let v_rel = v_new - col.velocity_at(*x);
+        let vt = v_rel - v_rel.dot(nrm) * nrm;
+        let vt_len = vt.length();
+        let fr = col.friction;
+        let vt_new = if vt_len <= fr.static_coefficient * dvn {
+            Vec3::ZERO
+        } else {
+            vt * (1.0 - fr.kinetic_coefficient * dvn / vt_len).max(0.0)
+        };
+        v_new += vt_new - vt;
+    }
+    *v = v_new;
+    *x += h * v_new;
 }
 
 /// One linearised backward-Euler substep.
@@ -276,12 +412,18 @@ pub(super) fn substep(
     let cfg = ctx.config;
     let settings = cfg.implicit;
     accumulate(cfg, ctx.topology, ctx.particles, ctx.wind, force);
+    if crate::simd::kernel() != crate::simd::Kernel::Reference && grid::applies(ctx) {
+        grid::substep(ctx, force, &mut sc.grid, cg);
+        return;
+    }
 
     let springs = ctx.topology.springs();
     sc.incident.build(n, springs);
     let tasks = n.div_ceil(PARTICLES_PER_TASK);
     sc.partial.clear();
     sc.partial.resize(tasks, 0.0);
+    sc.dots.clear();
+    sc.dots.resize(n, 0.0);
     sc.block.clear();
     sc.block.resize(springs.len(), Sym3::default());
     resize(&mut sc.term, springs.len());
@@ -309,10 +451,8 @@ pub(super) fn substep(
     let mut kinds = [(0usize, 0.0f32, 0.0f32); 4];
     let mut end = 0;
     for (slot, kind) in kinds.iter_mut().zip(SpringKind::ALL) {
-        let p = cfg.material.params(kind);
-        let k = if cfg.forces.springs { p.stiffness } else { 0.0 };
-        let c = if cfg.forces.dashpots { p.damping } else { 0.0 };
         end += ctx.topology.springs_of(kind).len();
+        let (k, c) = spring_params(cfg, kind);
         *slot = (end, k, c);
     }
     {
@@ -327,26 +467,7 @@ pub(super) fn substep(
                 for (j, ((block, term), s)) in block.iter_mut().zip(term).zip(chunk).enumerate() {
                     let (_, k, c) = kinds[kinds.iter().position(|e| base + j < e.0).unwrap_or(3)];
                     let (a, b) = (s.a as usize, s.b as usize);
-                    let l = x[b] - x[a];
-                    let len = l.length();
-                    if len <= 0.0 || (k == 0.0 && c == 0.0) {
-                        *block = Sym3::default();
-                        *term = Vec3::ZERO;
-                        continue;
-                    }
-                    let d = l / len;
-                    let dd = Sym3::outer(d);
-                    let geometric = (1.0 - s.rest_length / len).max(0.0);
-                    // K = k·(d·dᵀ + g·(I − d·dᵀ)).
-                    let stiff = Sym3 {
-                        diag: k * (dd.diag + geometric * (Vec3::ONE - dd.diag)),
-                        upper: k * (dd.upper - geometric * dd.upper),
-                    };
-                    *term = (h * h) * stiff.mul(v[b] - v[a]);
-                    *block = Sym3 {
-                        diag: (h * c) * dd.diag + (h * h) * stiff.diag,
-                        upper: (h * c) * dd.upper + (h * h) * stiff.upper,
-                    };
+                    (*block, *term) = assemble(x[a], x[b], v[a], v[b], s.rest_length, k, c, h);
                 }
             });
     }
@@ -389,26 +510,14 @@ pub(super) fn substep(
                         sum = sum + block[(e >> 1) as usize];
                     }
                     *precond = sum.to_mat3().inverse();
-                    *filter = Filter::Free;
-                    if p.inv_mass[i] == 0.0 {
-                        *filter = Filter::Fixed;
-                        continue;
-                    }
-                    let (x, v) = (p.position[i], p.velocity[i]);
-                    for (ci, col) in colliders.iter().enumerate() {
-                        let (dist, nrm) = col.shape.distance_within(x, col.contact_range());
-                        let slack = 0.1 * col.thickness + 1e-5 + g_h * h;
-                        if dist - col.thickness < slack {
-                            let vn = (v - col.velocity_at(x)).dot(nrm);
-                            if vn <= g_h {
-                                // Δv·n = −v_rel·n: the new normal velocity equals the
-                                // collider's.
-                                *dv = -vn * nrm;
-                                *filter = Filter::Normal(nrm, ci as u32);
-                                break;
-                            }
-                        }
-                    }
+                    (*filter, *dv) = constrain(
+                        p.position[i],
+                        p.velocity[i],
+                        p.inv_mass[i],
+                        colliders,
+                        h,
+                        g_h,
+                    );
                 }
             });
     }
@@ -420,17 +529,15 @@ pub(super) fn substep(
         .zip(sc.rhs.par_chunks(PARTICLES_PER_TASK))
         .zip(sc.precond.par_chunks(PARTICLES_PER_TASK))
         .zip(sc.filter.par_chunks(PARTICLES_PER_TASK))
-        .zip(sc.partial.par_iter_mut())
-        .for_each(|(((((s, c), b), m), f), partial)| {
-            let mut dot = 0.0f64;
-            for ((((s, c), b), m), f) in s.iter_mut().zip(c).zip(b).zip(m).zip(f) {
+        .zip(sc.dots.par_chunks_mut(PARTICLES_PER_TASK))
+        .for_each(|(((((s, c), b), m), f), dots)| {
+            for (((((s, c), b), m), f), dot) in s.iter_mut().zip(c).zip(b).zip(m).zip(f).zip(dots) {
                 *s = f.apply(*b);
                 *c = *m * *s;
-                dot += f64::from(s.dot(*c));
+                *dot = s.dot(*c);
             }
-            *partial = dot;
         });
-    let delta0 = total(&sc.partial);
+    let delta0 = reduce(&sc.dots, &mut sc.partial);
     // r = filter(b − A·Δv), c = filter(P·r).
     let mut q = std::mem::take(&mut sc.q);
     let dv = std::mem::take(&mut sc.dv);
@@ -442,17 +549,17 @@ pub(super) fn substep(
         .zip(q.par_chunks(PARTICLES_PER_TASK))
         .zip(sc.precond.par_chunks(PARTICLES_PER_TASK))
         .zip(sc.filter.par_chunks(PARTICLES_PER_TASK))
-        .zip(sc.partial.par_iter_mut())
-        .for_each(|((((((r, c), b), aq), m), f), partial)| {
-            let mut dot = 0.0f64;
-            for (((((r, c), b), aq), m), f) in r.iter_mut().zip(c).zip(b).zip(aq).zip(m).zip(f) {
+        .zip(sc.dots.par_chunks_mut(PARTICLES_PER_TASK))
+        .for_each(|((((((r, c), b), aq), m), f), dots)| {
+            for ((((((r, c), b), aq), m), f), dot) in
+                r.iter_mut().zip(c).zip(b).zip(aq).zip(m).zip(f).zip(dots)
+            {
                 *r = f.apply(*b - *aq);
                 *c = f.apply(*m * *r);
-                dot += f64::from(r.dot(*c));
+                *dot = r.dot(*c);
             }
-            *partial = dot;
         });
-    let mut delta = total(&sc.partial);
+    let mut delta = reduce(&sc.dots, &mut sc.partial);
     let tol2 = f64::from(settings.tolerance) * f64::from(settings.tolerance);
     let mut iterations = 0;
     while delta > tol2 * delta0 && iterations < settings.max_iterations {
@@ -472,20 +579,19 @@ pub(super) fn substep(
             .zip(sc.c.par_chunks(PARTICLES_PER_TASK))
             .zip(q.par_chunks(PARTICLES_PER_TASK))
             .zip(sc.precond.par_chunks(PARTICLES_PER_TASK))
-            .zip(sc.partial.par_iter_mut())
-            .for_each(|((((((dv, r), s), c), q), m), partial)| {
-                let mut dot = 0.0f64;
-                for (((((dv, r), s), c), q), m) in dv.iter_mut().zip(r).zip(s).zip(c).zip(q).zip(m)
+            .zip(sc.dots.par_chunks_mut(PARTICLES_PER_TASK))
+            .for_each(|((((((dv, r), s), c), q), m), dots)| {
+                for ((((((dv, r), s), c), q), m), dot) in
+                    dv.iter_mut().zip(r).zip(s).zip(c).zip(q).zip(m).zip(dots)
                 {
                     *dv += alpha * *c;
                     *r -= alpha * *q;
                     *s = *m * *r;
-                    dot += f64::from(r.dot(*s));
+                    *dot = r.dot(*s);
                 }
-                *partial = dot;
             });
         let delta_old = delta;
-        delta = total(&sc.partial);
+        delta = reduce(&sc.dots, &mut sc.partial);
         let beta = (delta / delta_old) as f32;
         // c = filter(s + β·c).
         sc.c.par_chunks_mut(PARTICLES_PER_TASK)
@@ -529,24 +635,7 @@ pub(super) fn substep(
             for ((((((x, v), &w), dv), f), aq), b) in
                 x.iter_mut().zip(v).zip(w).zip(dv).zip(f).zip(aq).zip(b)
             {
-                let mut v_new = *v + *dv;
-                if let Filter::Normal(nrm, ci) = *f {
-                    let col = &colliders[ci as usize];
-                    let impulse = (*aq - *b).dot(nrm).max(0.0);
-                    let dvn = impulse * w;
-                    let v_rel = v_new - col.velocity_at(*x);
-                    let vt = v_rel - v_rel.dot(nrm) * nrm;
-                    let vt_len = vt.length();
-                    let fr = col.friction;
-                    let vt_new = if vt_len <= fr.static_coefficient * dvn {
-                        Vec3::ZERO
-                    } else {
-                        vt * (1.0 - fr.kinetic_coefficient * dvn / vt_len).max(0.0)
-                    };
-                    v_new += vt_new - vt;
-                }
-                *v = v_new;
-                *x += h * v_new;
+                finish(x, v, w, *dv, *f, *aq, *b, colliders, h);
             }
         });
     let contacts: u32 = p

@@ -9,7 +9,7 @@ pub(crate) mod chains;
 mod explicit;
 pub(crate) mod grid_kernel;
 pub(crate) mod grid_xpbd;
-mod implicit;
+pub(crate) mod implicit;
 pub(crate) mod placed;
 pub(crate) mod shared_rows;
 mod xpbd;

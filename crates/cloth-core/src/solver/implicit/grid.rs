@@ -1,0 +1,1040 @@
+//! Implicit Euler's grid path: the solver of [`super`] on a cloth built by
+//! [`crate::GridBuilder`], with the same arithmetic in the same order, so the same bits as the
+//! reference path (tested), but with no index lists:
+//!
+//! - the springs are the grid's six classes (warp, weft, the two diagonals, the two bends),
+//!   each spring stored at its first end, its second end a fixed offset further;
+//! - the vectors of the conjugate gradient are structure-of-arrays rows (x, y and z apart);
+//! - a product A·p is each class's terms S·(p_a − p_b) over whole row runs, then each row's
+//!   sums over the twelve springs a particle can have, added term by term over row runs in the
+//!   order of their indices in the reference path's spring list (the builder's order), which
+//!   is the order in which the reference path adds them;
+//! - a dot product's terms go through [`super::reduce`], as on the reference path.
+//!
+//! Every loop is over contiguous runs of plain `f32` slices, which the compiler vectorises.
+
+use std::ops::Range;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::{
+    CgStats, Filter, PARTICLES_PER_TASK, Sym3, assemble, constrain, finish, reduce, spring_params,
+};
+use crate::collide::resolve_contacts_in;
+use crate::simd::{self, Kernel};
+use crate::solver::SubstepCtx;
+use crate::topology::{SpringKind, Topology};
+
+/// The grid's spring classes, each at its first end `(r, c)`, its second end at
+/// `(r + dr, c + dc)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Class {
+    /// `(r, c)–(r + 1, c)`.
+    Warp,
+    /// `(r, c)–(r, c + 1)`.
+    Weft,
+    /// `(r, c)–(r + 1, c + 1)`.
+    Down,
+    /// `(r, c)–(r + 1, c − 1)` (the cell's other diagonal, from its top right corner).
+    Up,
+    /// `(r, c)–(r + 2, c)`.
+    BendWarp,
+    /// `(r, c)–(r, c + 2)`.
+    BendWeft,
+}
+
+const CLASSES: [Class; 6] = [
+    Class::Warp,
+    Class::Weft,
+    Class::Down,
+    Class::Up,
+    Class::BendWarp,
+    Class::BendWeft,
+];
+
+/// The springs a particle can have, in the order of their indices in the reference path's
+/// spring list (kinds in order; within a kind, by their first end's cell, row-major; within
+/// a cell, the down diagonal before the up one and the warp bend before the weft bend), with
+/// whether the particle is the spring's second end.
+const STENCIL: [(Class, bool); 12] = [
+    (Class::Warp, true),
+    (Class::Warp, false),
+    (Class::Weft, true),
+    (Class::Weft, false),
+    (Class::Down, true),
+    (Class::Up, true),
+    (Class::Up, false),
+    (Class::Down, false),
+    (Class::BendWarp, true),
+    (Class::BendWeft, true),
+    (Class::BendWarp, false),
+    (Class::BendWeft, false),
+];
+
+impl Class {
+    fn index(self) -> usize {
+        self as usize
+    }
+
+    fn kind(self) -> SpringKind {
+        match self {
+            Class::Warp => SpringKind::Warp,
+            Class::Weft => SpringKind::Weft,
+            Class::Down | Class::Up => SpringKind::Shear,
+            Class::BendWarp | Class::BendWeft => SpringKind::Bend,
+        }
+    }
+
+    /// (dr, dc).
+    fn step(self) -> (usize, isize) {
+        match self {
+            Class::Warp => (1, 0),
+            Class::Weft => (0, 1),
+            Class::Down => (1, 1),
+            Class::Up => (1, -1),
+            Class::BendWarp => (2, 0),
+            Class::BendWeft => (0, 2),
+        }
+    }
+
+    /// Index offset from the first end to the second.
+    fn offset(self, cols: usize) -> usize {
+        let (dr, dc) = self.step();
+        (dr * cols).wrapping_add_signed(dc)
+    }
+
+    /// Rows and columns of the first ends.
+    fn firsts(self, rows: usize, cols: usize) -> (Range<usize>, Range<usize>) {
+        let (dr, dc) = self.step();
+        let r = 0..rows.saturating_sub(dr);
+        let c = match dc {
+            -1 => 1.min(cols)..cols,
+            d => 0..cols.saturating_sub(d.unsigned_abs()),
+        };
+        (r, c)
+    }
+
+    /// Rows and columns of the particles this class's springs reach as `second` ends or
+    /// first ones.
+    fn ends(self, rows: usize, cols: usize, second: bool) -> (Range<usize>, Range<usize>) {
+        let (r, c) = self.firsts(rows, cols);
+        if !second {
+            return (r, c);
+        }
+        let (dr, dc) = self.step();
+        let shift = |x: usize| x.wrapping_add_signed(dc);
+        (r.start + dr..r.end + dr, shift(c.start)..shift(c.end))
+    }
+}
+
+/// Lanes of the fixed-size chunks the vectorised loops work in.
+const L: usize = 32;
+
+/// `s[j..j + L]` as an array (the loops over it then need no bounds checks).
+#[inline(always)]
+fn lane(s: &[f32], j: usize) -> &[f32; L] {
+    s[j..j + L].try_into().expect("L entries")
+}
+
+/// `s[j..j + L]` as a mutable array.
+#[inline(always)]
+fn lane_mut(s: &mut [f32], j: usize) -> &mut [f32; L] {
+    (&mut s[j..j + L]).try_into().expect("L entries")
+}
+
+/// y += a·x, lane by lane (a function of its own so that the references are known not to
+/// overlap, which lets the compiler vectorise it).
+#[inline(always)]
+fn axpy(y: &mut [f32; L], a: f32, x: &[f32; L]) {
+    for k in 0..L {
+        y[k] += a * x[k];
+    }
+}
+
+/// y −= a·x, lane by lane.
+#[inline(always)]
+fn axmy(y: &mut [f32; L], a: f32, x: &[f32; L]) {
+    for k in 0..L {
+        y[k] -= a * x[k];
+    }
+}
+
+/// out = a·x + b·y + c·z, lane by lane (a row of a 3 × 3 block times a vector).
+#[inline(always)]
+fn row3(
+    out: &mut [f32; L],
+    a: &[f32; L],
+    b: &[f32; L],
+    c: &[f32; L],
+    x: &[f32; L],
+    y: &[f32; L],
+    z: &[f32; L],
+) {
+    for k in 0..L {
+        out[k] = a[k] * x[k] + b[k] * y[k] + c[k] * z[k];
+    }
+}
+
+/// out = p_a − p_b, lane by lane.
+#[inline(always)]
+fn sub(out: &mut [f32; L], a: &[f32; L], b: &[f32; L]) {
+    for k in 0..L {
+        out[k] = a[k] - b[k];
+    }
+}
+
+/// Runs `body(j0, width)` over `0..len` in chunks: `width` is [`L`] for the whole chunks and
+/// then 1 for each leftover index, so that `body` can take fixed-size lanes when it is `L`.
+macro_rules! in_lanes {
+    ($len:expr, |$j0:ident, $w:ident| $body:block) => {{
+        let len = $len;
+        let mut $j0 = 0;
+        while $j0 + L <= len {
+            let $w = L;
+            $body
+            $j0 += L;
+        }
+        while $j0 < len {
+            let $w = 1;
+            $body
+            $j0 += 1;
+        }
+    }};
+}
+
+/// Three components in separate arrays.
+type Soa = [Vec<f32>; 3];
+
+fn resize_soa(v: &mut Soa, n: usize) {
+    for a in v {
+        a.clear();
+        a.resize(n, 0.0);
+    }
+}
+
+/// One spring class's blocks S (diagonal x, y, z, then xy, xz, yz) and terms, per first end.
+#[derive(Debug, Clone, Default)]
+struct ClassArrays {
+    block: [Vec<f32>; 6],
+    term: Soa,
+}
+
+/// Filter kinds in [`GridScratch::kind`].
+const FREE: u8 = 0;
+const FIXED: u8 = 1;
+const NORMAL: u8 = 2;
+
+/// Scratch of the grid path, sized once per cloth.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct GridScratch {
+    class: [ClassArrays; 6],
+    rhs: Soa,
+    dv: Soa,
+    r: Soa,
+    c: Soa,
+    q: Soa,
+    s: Soa,
+    /// The preconditioner's inverse blocks, column-major (`precond[3 * col + row]`).
+    precond: [Vec<f32>; 9],
+    /// [`FREE`], [`FIXED`] or [`NORMAL`].
+    kind: Vec<u8>,
+    normal: Soa,
+    collider: Vec<u32>,
+    dots: Vec<f32>,
+    partial: Vec<f64>,
+    /// Each class's rest lengths at the first ends, m (from the topology, once per cloth).
+    rest: [Vec<f32>; 6],
+    /// The spring count `rest` was built for.
+    rest_built: usize,
+}
+
+/// Mutable chunks of the three arrays.
+fn chunks3(v: &mut Soa, k: usize) -> impl IndexedParallelIterator<Item = [&mut [f32]; 3]> {
+    let [x, y, z] = v;
+    (
+        x.par_chunks_mut(k),
+        y.par_chunks_mut(k),
+        z.par_chunks_mut(k),
+    )
+        .into_par_iter()
+        .map(|(x, y, z)| [x, y, z])
+}
+
+/// Shared chunks of the three arrays.
+fn chunks3_ref(v: &Soa, k: usize) -> impl IndexedParallelIterator<Item = [&[f32]; 3]> {
+    let [x, y, z] = v;
+    (x.par_chunks(k), y.par_chunks(k), z.par_chunks(k))
+        .into_par_iter()
+        .map(|(x, y, z)| [x, y, z])
+}
+
+/// Shared chunks of the nine preconditioner arrays.
+fn chunks9(v: &[Vec<f32>; 9], k: usize) -> impl IndexedParallelIterator<Item = [&[f32]; 9]> {
+    let [a, b, c, d, e, f, g, h, i] = v;
+    (
+        (a.par_chunks(k), b.par_chunks(k), c.par_chunks(k)),
+        (d.par_chunks(k), e.par_chunks(k), f.par_chunks(k)),
+        (g.par_chunks(k), h.par_chunks(k), i.par_chunks(k)),
+    )
+        .into_par_iter()
+        .map(|((a, b, c), (d, e, f), (g, h, i))| [a, b, c, d, e, f, g, h, i])
+}
+
+/// P·r with P's nine entries column-major, as glam's `Mat3 * Vec3`.
+#[inline]
+fn precond_mul(m: &[&[f32]; 9], j: usize, r: [f32; 3]) -> [f32; 3] {
+    let col = |k: usize| [m[3 * k][j], m[3 * k + 1][j], m[3 * k + 2][j]];
+    let (a, b, c) = (col(0), col(1), col(2));
+    [
+        a[0] * r[0] + b[0] * r[1] + c[0] * r[2],
+        a[1] * r[0] + b[1] * r[1] + c[1] * r[2],
+        a[2] * r[0] + b[2] * r[1] + c[2] * r[2],
+    ]
+}
+
+/// [`Filter::apply`] on one particle, written with selects so that a loop of it vectorises
+/// (the projection is computed for every particle, and kept only for a contact).
+#[inline(always)]
+fn apply(kind: u8, n: [f32; 3], p: [f32; 3]) -> [f32; 3] {
+    let d = n[0] * p[0] + n[1] * p[1] + n[2] * p[2];
+    let w = [p[0] - d * n[0], p[1] - d * n[1], p[2] - d * n[2]];
+    let pick = |pv: f32, wv: f32| {
+        if kind == FREE {
+            pv
+        } else if kind == FIXED {
+            0.0
+        } else {
+            wv
+        }
+    };
+    [pick(p[0], w[0]), pick(p[1], w[1]), pick(p[2], w[2])]
+}
+
+#[inline]
+fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+#[inline]
+fn get(v: &[&[f32]; 3], j: usize) -> [f32; 3] {
+    [v[0][j], v[1][j], v[2][j]]
+}
+
+#[inline]
+fn put(v: &mut [&mut [f32]; 3], j: usize, x: [f32; 3]) {
+    v[0][j] = x[0];
+    v[1][j] = x[1];
+    v[2][j] = x[2];
+}
+
+/// Adds or subtracts the terms of the stencil to rows `r0..` of `y` (their
+/// starting values already there): for each stencil entry in order, over the run of each row
+/// that has that spring.
+#[inline(always)]
+fn stencil(rows: usize, cols: usize, r0: usize, y: &mut [&mut [f32]; 3], terms: &[&Soa; 6]) {
+    let band_rows = y[0].len() / cols;
+    for r in r0..r0 + band_rows {
+        let row = (r - r0) * cols;
+        let i0 = r * cols;
+        for &(class, second) in &STENCIL {
+            let (rr, cr) = class.ends(rows, cols, second);
+            if !rr.contains(&r) || cr.is_empty() {
+                continue;
+            }
+            let shift = if second { class.offset(cols) } else { 0 };
+            let term = terms[class.index()];
+            for (dst, src) in y.iter_mut().zip(term) {
+                let dst = &mut dst[row + cr.start..row + cr.end];
+                let src = &src[i0 + cr.start - shift..i0 + cr.end - shift];
+                if second {
+                    for (d, s) in dst.iter_mut().zip(src) {
+                        *d -= *s;
+                    }
+                } else {
+                    for (d, s) in dst.iter_mut().zip(src) {
+                        *d += *s;
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl GridScratch {
+    /// Each class's rest lengths, placed at the first ends from the topology's springs (the
+    /// builder's, whose kinds and offsets tell their class).
+    fn rest_lengths(&mut self, topology: &Topology, cols: usize) {
+        let n = self.kind.len();
+        if self.rest_built == topology.springs().len() && self.rest[0].len() == n {
+            return;
+        }
+        for r in &mut self.rest {
+            r.clear();
+            r.resize(n, 0.0);
+        }
+        for kind in SpringKind::ALL {
+            for s in topology.springs_of(kind) {
+                let (a, b) = (s.a as usize, s.b as usize);
+                let class = match kind {
+                    SpringKind::Warp => Class::Warp,
+                    SpringKind::Weft => Class::Weft,
+                    SpringKind::Shear if b - a == cols + 1 => Class::Down,
+                    SpringKind::Shear => Class::Up,
+                    SpringKind::Bend if b - a == 2 * cols => Class::BendWarp,
+                    SpringKind::Bend => Class::BendWeft,
+                };
+                self.rest[class.index()][a] = s.rest_length;
+            }
+        }
+        self.rest_built = topology.springs().len();
+    }
+
+    fn size(&mut self, n: usize) {
+        for class in &mut self.class {
+            for b in &mut class.block {
+                b.clear();
+                b.resize(n, 0.0);
+            }
+            resize_soa(&mut class.term, n);
+        }
+        for v in [
+            &mut self.rhs,
+            &mut self.dv,
+            &mut self.r,
+            &mut self.c,
+            &mut self.q,
+            &mut self.s,
+            &mut self.normal,
+        ] {
+            resize_soa(v, n);
+        }
+        for p in &mut self.precond {
+            p.clear();
+            p.resize(n, 0.0);
+        }
+        self.kind.clear();
+        self.kind.resize(n, FREE);
+        self.collider.clear();
+        self.collider.resize(n, 0);
+        self.dots.clear();
+        self.dots.resize(n, 0.0);
+        self.partial.clear();
+        self.partial.resize(n.div_ceil(PARTICLES_PER_TASK), 0.0);
+    }
+
+    /// Each class's terms S·(p_a − p_b), at the springs' first ends.
+    fn spring_products(&mut self, kernel: Kernel, rows: usize, cols: usize, p: &Soa) {
+        self.class
+            .par_iter_mut()
+            .zip(CLASSES.par_iter())
+            .for_each(|(arrays, &class)| {
+                let (rr, cr) = class.firsts(rows, cols);
+                let job = Products {
+                    p,
+                    block: &arrays.block,
+                    rows: rr,
+                    cols: cr,
+                    width: cols,
+                    offset: class.offset(cols),
+                };
+                simd::implicit_products(kernel, &job, &mut arrays.term);
+            });
+    }
+
+    /// y = A·p (`filtered`: then y is filtered too); returns p·y.
+    #[allow(clippy::too_many_arguments)]
+    fn multiply(
+        &mut self,
+        kernel: Kernel,
+        rows: usize,
+        cols: usize,
+        mass: &[f32],
+        diag: f32,
+        p: &Soa,
+        y: &mut Soa,
+        filtered: bool,
+    ) -> f64 {
+        self.spring_products(kernel, rows, cols, p);
+        let band = (PARTICLES_PER_TASK / cols).max(1) * cols;
+        let job = BandJob {
+            rows,
+            cols,
+            mass,
+            diag,
+            p,
+            terms: std::array::from_fn(|k| &self.class[k].term),
+            kind: &self.kind,
+            normal: &self.normal,
+            filtered,
+        };
+        chunks3(y, band)
+            .zip(self.dots.par_chunks_mut(band))
+            .enumerate()
+            .for_each(|(task, (y, dots))| {
+                simd::implicit_band(kernel, &job, task * band, y, dots);
+            });
+        reduce(&self.dots, &mut self.partial)
+    }
+}
+
+/// One class's spring products: the first ends of rows `rows`, columns `cols` of a grid
+/// `width` wide, each spring's second end `offset` further.
+pub(crate) struct Products<'a> {
+    p: &'a Soa,
+    block: &'a [Vec<f32>; 6],
+    rows: Range<usize>,
+    cols: Range<usize>,
+    width: usize,
+    offset: usize,
+}
+
+/// `term = S·(p_a − p_b)` for one class (see [`Products`]), run by run.
+#[inline(always)]
+pub(crate) fn products(job: &Products<'_>, term: &mut Soa) {
+    let [a0, a1, a2, u0, u1, u2] = job.block;
+    let [t0, t1, t2] = term;
+    let [px, py, pz] = job.p;
+    let (cols, off) = (job.width, job.offset);
+    for r in job.rows.clone() {
+        let run = r * cols + job.cols.start..r * cols + job.cols.end;
+        let len = run.len();
+        let far = run.start + off..run.end + off;
+        let (px_a, py_a, pz_a) = (&px[run.clone()], &py[run.clone()], &pz[run.clone()]);
+        let (px_b, py_b, pz_b) = (&px[far.clone()], &py[far.clone()], &pz[far]);
+        let (a0, a1, a2) = (&a0[run.clone()], &a1[run.clone()], &a2[run.clone()]);
+        let (u0, u1, u2) = (&u0[run.clone()], &u1[run.clone()], &u2[run.clone()]);
+        let (t0, t1, t2) = (&mut t0[run.clone()], &mut t1[run.clone()], &mut t2[run]);
+        let spring = |t: [&mut f32; 3], a: [f32; 3], u: [f32; 3], pa: [f32; 3], pb: [f32; 3]| {
+            let (dx, dy, dz) = (pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]);
+            *t[0] = a[0] * dx + u[0] * dy + u[1] * dz;
+            *t[1] = u[0] * dx + a[1] * dy + u[2] * dz;
+            *t[2] = u[1] * dx + u[2] * dy + a[2] * dz;
+        };
+        in_lanes!(len, |j, w| {
+            if w == L {
+                let (t0, t1, t2) = (lane_mut(t0, j), lane_mut(t1, j), lane_mut(t2, j));
+                let (a0, a1, a2) = (lane(a0, j), lane(a1, j), lane(a2, j));
+                let (u0, u1, u2) = (lane(u0, j), lane(u1, j), lane(u2, j));
+                let (xa, ya, za) = (lane(px_a, j), lane(py_a, j), lane(pz_a, j));
+                let (xb, yb, zb) = (lane(px_b, j), lane(py_b, j), lane(pz_b, j));
+                let (mut dx, mut dy, mut dz) = ([0.0; L], [0.0; L], [0.0; L]);
+                sub(&mut dx, xa, xb);
+                sub(&mut dy, ya, yb);
+                sub(&mut dz, za, zb);
+                row3(t0, a0, u0, u1, &dx, &dy, &dz);
+                row3(t1, u0, a1, u2, &dx, &dy, &dz);
+                row3(t2, u1, u2, a2, &dx, &dy, &dz);
+            } else {
+                spring(
+                    [&mut t0[j], &mut t1[j], &mut t2[j]],
+                    [a0[j], a1[j], a2[j]],
+                    [u0[j], u1[j], u2[j]],
+                    [px_a[j], py_a[j], pz_a[j]],
+                    [px_b[j], py_b[j], pz_b[j]],
+                );
+            }
+        });
+    }
+}
+
+/// What a band of a product A·p reads.
+pub(crate) struct BandJob<'a> {
+    rows: usize,
+    cols: usize,
+    mass: &'a [f32],
+    diag: f32,
+    p: &'a Soa,
+    terms: [&'a Soa; 6],
+    kind: &'a [u8],
+    normal: &'a Soa,
+    filtered: bool,
+}
+
+/// The rows of y = A·p from particle `base` on (whole rows, `y`'s length): (m + h·d)·p, the
+/// stencil's terms, the filter when asked; `dots` gets p·y per particle.
+#[inline(always)]
+pub(crate) fn band(job: &BandJob<'_>, base: usize, mut y: [&mut [f32]; 3], dots: &mut [f32]) {
+    let p = job.p;
+    let len = dots.len();
+    let at = base..base + len;
+    let (px, py, pz) = (&p[0][at.clone()], &p[1][at.clone()], &p[2][at.clone()]);
+    {
+        let m = &job.mass[at.clone()];
+        let [yx, yy, yz] = &mut y;
+        let (yx, yy, yz) = (&mut yx[..len], &mut yy[..len], &mut yz[..len]);
+        for j in 0..len {
+            let s = m[j] + job.diag;
+            (yx[j], yy[j], yz[j]) = (s * px[j], s * py[j], s * pz[j]);
+        }
+    }
+    stencil(job.rows, job.cols, base / job.cols, &mut y, &job.terms);
+    let [yx, yy, yz] = &mut y;
+    let (yx, yy, yz) = (&mut yx[..len], &mut yy[..len], &mut yz[..len]);
+    if job.filtered {
+        let k = &job.kind[at.clone()];
+        let n = job.normal;
+        let (nx, ny, nz) = (&n[0][at.clone()], &n[1][at.clone()], &n[2][at]);
+        for j in 0..len {
+            let v = apply(k[j], [nx[j], ny[j], nz[j]], [yx[j], yy[j], yz[j]]);
+            [yx[j], yy[j], yz[j]] = v;
+            dots[j] = dot([px[j], py[j], pz[j]], v);
+        }
+    } else {
+        for j in 0..len {
+            dots[j] = dot([px[j], py[j], pz[j]], [yx[j], yy[j], yz[j]]);
+        }
+    }
+}
+
+/// Δv += α·c, r −= α·q, s = P·r (P column-major, as glam's `Mat3 * Vec3`), `dots` = r·s.
+#[inline(always)]
+pub(crate) fn update(
+    alpha: f32,
+    [dv, r, s]: [[&mut [f32]; 3]; 3],
+    c: [&[f32]; 3],
+    q: [&[f32]; 3],
+    m: [&[f32]; 9],
+    dots: &mut [f32],
+) {
+    let len = dots.len();
+    let [dvx, dvy, dvz] = dv;
+    let (dvx, dvy, dvz) = (&mut dvx[..len], &mut dvy[..len], &mut dvz[..len]);
+    let [rx, ry, rz] = r;
+    let (rx, ry, rz) = (&mut rx[..len], &mut ry[..len], &mut rz[..len]);
+    let [sx, sy, sz] = s;
+    let (sx, sy, sz) = (&mut sx[..len], &mut sy[..len], &mut sz[..len]);
+    let (cx, cy, cz) = (&c[0][..len], &c[1][..len], &c[2][..len]);
+    let (qx, qy, qz) = (&q[0][..len], &q[1][..len], &q[2][..len]);
+    let [m0, m1, m2, m3, m4, m5, m6, m7, m8] = m.map(|m| &m[..len]);
+    // One particle: its nine preconditioner entries, c and q in, Δv, r and s updated; r·s.
+    let one = |dv: [&mut f32; 3],
+               r: [&mut f32; 3],
+               s: [&mut f32; 3],
+               c: [f32; 3],
+               q: [f32; 3],
+               m: [f32; 9]|
+     -> f32 {
+        for a in 0..3 {
+            *dv[a] += alpha * c[a];
+            *r[a] -= alpha * q[a];
+        }
+        let (a, b, c) = (*r[0], *r[1], *r[2]);
+        let sv = [
+            m[0] * a + m[3] * b + m[6] * c,
+            m[1] * a + m[4] * b + m[7] * c,
+            m[2] * a + m[5] * b + m[8] * c,
+        ];
+        (*s[0], *s[1], *s[2]) = (sv[0], sv[1], sv[2]);
+        dot([a, b, c], sv)
+    };
+    in_lanes!(len, |j, w| {
+        if w == L {
+            let (dvx, dvy, dvz) = (lane_mut(dvx, j), lane_mut(dvy, j), lane_mut(dvz, j));
+            let (rx, ry, rz) = (lane_mut(rx, j), lane_mut(ry, j), lane_mut(rz, j));
+            let (sx, sy, sz) = (lane_mut(sx, j), lane_mut(sy, j), lane_mut(sz, j));
+            let (cx, cy, cz) = (lane(cx, j), lane(cy, j), lane(cz, j));
+            let (qx, qy, qz) = (lane(qx, j), lane(qy, j), lane(qz, j));
+            let mm = [
+                lane(m0, j),
+                lane(m1, j),
+                lane(m2, j),
+                lane(m3, j),
+                lane(m4, j),
+                lane(m5, j),
+                lane(m6, j),
+                lane(m7, j),
+                lane(m8, j),
+            ];
+            let d = lane_mut(dots, j);
+            let [m0, m1, m2, m3, m4, m5, m6, m7, m8] = mm;
+            axpy(dvx, alpha, cx);
+            axpy(dvy, alpha, cy);
+            axpy(dvz, alpha, cz);
+            axmy(rx, alpha, qx);
+            axmy(ry, alpha, qy);
+            axmy(rz, alpha, qz);
+            // s = P·r as glam's Mat3 * Vec3 (column-major); then r·s.
+            row3(sx, m0, m3, m6, rx, ry, rz);
+            row3(sy, m1, m4, m7, rx, ry, rz);
+            row3(sz, m2, m5, m8, rx, ry, rz);
+            row3(d, rx, ry, rz, sx, sy, sz);
+        } else {
+            dots[j] = one(
+                [&mut dvx[j], &mut dvy[j], &mut dvz[j]],
+                [&mut rx[j], &mut ry[j], &mut rz[j]],
+                [&mut sx[j], &mut sy[j], &mut sz[j]],
+                [cx[j], cy[j], cz[j]],
+                [qx[j], qy[j], qz[j]],
+                [
+                    m0[j], m1[j], m2[j], m3[j], m4[j], m5[j], m6[j], m7[j], m8[j],
+                ],
+            );
+        }
+    });
+}
+
+/// c = filter(s + β·c).
+#[inline(always)]
+pub(crate) fn direction(
+    beta: f32,
+    c: [&mut [f32]; 3],
+    s: [&[f32]; 3],
+    kind: &[u8],
+    normal: [&[f32]; 3],
+) {
+    let len = kind.len();
+    let [cx, cy, cz] = c;
+    let (cx, cy, cz) = (&mut cx[..len], &mut cy[..len], &mut cz[..len]);
+    let (sx, sy, sz) = (&s[0][..len], &s[1][..len], &s[2][..len]);
+    let (nx, ny, nz) = (&normal[0][..len], &normal[1][..len], &normal[2][..len]);
+    let one = |c: [&mut f32; 3], s: [f32; 3], kind: u8, n: [f32; 3]| {
+        let v = [
+            s[0] + beta * *c[0],
+            s[1] + beta * *c[1],
+            s[2] + beta * *c[2],
+        ];
+        let out = apply(kind, n, v);
+        (*c[0], *c[1], *c[2]) = (out[0], out[1], out[2]);
+    };
+    in_lanes!(len, |j, w| {
+        if w == L {
+            let (cx, cy, cz) = (lane_mut(cx, j), lane_mut(cy, j), lane_mut(cz, j));
+            let (sx, sy, sz) = (lane(sx, j), lane(sy, j), lane(sz, j));
+            let (nx, ny, nz) = (lane(nx, j), lane(ny, j), lane(nz, j));
+            let kind: &[u8; L] = kind[j..j + L].try_into().expect("L entries");
+            for k in 0..L {
+                let v = [
+                    sx[k] + beta * cx[k],
+                    sy[k] + beta * cy[k],
+                    sz[k] + beta * cz[k],
+                ];
+                [cx[k], cy[k], cz[k]] = apply(kind[k], [nx[k], ny[k], nz[k]], v);
+            }
+        } else {
+            one(
+                [&mut cx[j], &mut cy[j], &mut cz[j]],
+                [sx[j], sy[j], sz[j]],
+                kind[j],
+                [nx[j], ny[j], nz[j]],
+            );
+        }
+    });
+}
+
+/// Whether the grid path runs `ctx`'s cloth: one built by [`crate::GridBuilder`] (its springs
+/// in the builder's order).
+pub(super) fn applies(ctx: &SubstepCtx<'_>) -> bool {
+    ctx.topology
+        .grid()
+        .is_some_and(|(rows, cols)| rows >= 2 && cols >= 2)
+}
+
+/// One linearised backward-Euler substep on the grid path (the stages of [`super::substep`]).
+pub(super) fn substep(
+    ctx: &mut SubstepCtx<'_>,
+    force: &[Vec3],
+    sc: &mut GridScratch,
+    cg: &mut CgStats,
+) {
+    let Some((rows, cols)) = ctx.topology.grid() else {
+        return;
+    };
+    let n = ctx.particles.len();
+    let h = ctx.h;
+    let cfg = ctx.config;
+    let settings = cfg.implicit;
+    let kernel = simd::kernel();
+    sc.size(n);
+    let diag = if cfg.forces.damping {
+        h * cfg.damping
+    } else {
+        0.0
+    };
+    let g_h = if cfg.forces.gravity {
+        cfg.gravity.length() * h
+    } else {
+        0.0
+    };
+
+    sc.rest_lengths(ctx.topology, cols);
+
+    // 1. Each class's blocks and right-hand-side terms h²·K·(v_b − v_a), at the first ends.
+    {
+        let (x, v) = (&ctx.particles.position, &ctx.particles.velocity);
+        let rest = &sc.rest;
+        sc.class
+            .par_iter_mut()
+            .zip(CLASSES.par_iter())
+            .for_each(|(arrays, &class)| {
+                let (k, c) = spring_params(cfg, class.kind());
+                let off = class.offset(cols);
+                let (rr, cr) = class.firsts(rows, cols);
+                let rest = &rest[class.index()];
+                let [a0, a1, a2, u0, u1, u2] = &mut arrays.block;
+                let [t0, t1, t2] = &mut arrays.term;
+                for r in rr {
+                    for a in r * cols + cr.start..r * cols + cr.end {
+                        let b = a + off;
+                        let (block, term) = assemble(x[a], x[b], v[a], v[b], rest[a], k, c, h);
+                        (a0[a], a1[a], a2[a]) = block.diag.into();
+                        (u0[a], u1[a], u2[a]) = block.upper.into();
+                        (t0[a], t1[a], t2[a]) = term.into();
+                    }
+                }
+            });
+    }
+
+    // 2. Per particle: b = h·f + the terms, the preconditioner, the filter and the start of
+    // Δv (as on the reference path).
+    {
+        let terms: [&Soa; 6] = std::array::from_fn(|k| &sc.class[k].term);
+        let blocks: [&[Vec<f32>; 6]; 6] = std::array::from_fn(|k| &sc.class[k].block);
+        let p = &*ctx.particles;
+        let colliders = ctx.colliders;
+        let band = (PARTICLES_PER_TASK / cols).max(1) * cols;
+        let [px0, px1, px2, px3, px4, px5, px6, px7, px8] = &mut sc.precond;
+        let precond = (
+            (
+                px0.par_chunks_mut(band),
+                px1.par_chunks_mut(band),
+                px2.par_chunks_mut(band),
+            ),
+            (
+                px3.par_chunks_mut(band),
+                px4.par_chunks_mut(band),
+                px5.par_chunks_mut(band),
+            ),
+            (
+                px6.par_chunks_mut(band),
+                px7.par_chunks_mut(band),
+                px8.par_chunks_mut(band),
+            ),
+        )
+            .into_par_iter();
+        chunks3(&mut sc.rhs, band)
+            .zip(chunks3(&mut sc.dv, band))
+            .zip(chunks3(&mut sc.normal, band))
+            .zip(sc.kind.par_chunks_mut(band))
+            .zip(sc.collider.par_chunks_mut(band))
+            .zip(precond)
+            .enumerate()
+            .for_each(
+                |(task, (((((mut rhs, mut dv), mut normal), kind), collider), pre))| {
+                    let ((m0, m1, m2), (m3, m4, m5), (m6, m7, m8)) = pre;
+                    let mut m = [m0, m1, m2, m3, m4, m5, m6, m7, m8];
+                    let base = task * band;
+                    for j in 0..kind.len() {
+                        let i = base + j;
+                        put(&mut rhs, j, (h * force[i]).into());
+                    }
+                    stencil(rows, cols, base / cols, &mut rhs, &terms);
+                    for j in 0..kind.len() {
+                        let i = base + j;
+                        let (r, c) = (i / cols, i % cols);
+                        let mut sum = Sym3 {
+                            diag: Vec3::splat(p.mass[i] + diag),
+                            upper: Vec3::ZERO,
+                        };
+                        for &(class, second) in &STENCIL {
+                            let (rr, cr) = class.ends(rows, cols, second);
+                            if rr.contains(&r) && cr.contains(&c) {
+                                let at = if second { i - class.offset(cols) } else { i };
+                                let b = blocks[class.index()];
+                                sum = sum
+                                    + Sym3 {
+                                        diag: Vec3::new(b[0][at], b[1][at], b[2][at]),
+                                        upper: Vec3::new(b[3][at], b[4][at], b[5][at]),
+                                    };
+                            }
+                        }
+                        let inverse = sum.to_mat3().inverse().to_cols_array();
+                        for (dst, value) in m.iter_mut().zip(inverse) {
+                            dst[j] = value;
+                        }
+                        let (filter, start) = constrain(
+                            p.position[i],
+                            p.velocity[i],
+                            p.inv_mass[i],
+                            colliders,
+                            h,
+                            g_h,
+                        );
+                        put(&mut dv, j, start.into());
+                        (kind[j], collider[j]) = match filter {
+                            Filter::Free => (FREE, 0),
+                            Filter::Fixed => (FIXED, 0),
+                            Filter::Normal(nrm, ci) => {
+                                put(&mut normal, j, nrm.into());
+                                (NORMAL, ci)
+                            }
+                        };
+                        if !matches!(filter, Filter::Normal(..)) {
+                            put(&mut normal, j, [0.0; 3]);
+                        }
+                    }
+                },
+            );
+    }
+
+    // 3. Modified PCG (Baraff & Witkin 1998, §5.3), as on the reference path.
+    let k = PARTICLES_PER_TASK;
+    // s = filter(b), c = P·s, δ0 = s·c.
+    {
+        let (kind, normal) = (&sc.kind, &sc.normal);
+        chunks3(&mut sc.s, k)
+            .zip(chunks3(&mut sc.c, k))
+            .zip(chunks3_ref(&sc.rhs, k))
+            .zip(chunks9(&sc.precond, k))
+            .zip(sc.dots.par_chunks_mut(k))
+            .enumerate()
+            .for_each(|(task, ((((mut s, mut c), b), m), dots))| {
+                let base = task * k;
+                for (j, dot_j) in dots.iter_mut().enumerate() {
+                    let i = base + j;
+                    let sv = apply(kind[i], nrm(normal, i), get(&b, j));
+                    let cv = precond_mul(&m, j, sv);
+                    put(&mut s, j, sv);
+                    put(&mut c, j, cv);
+                    *dot_j = dot(sv, cv);
+                }
+            });
+    }
+    let delta0 = reduce(&sc.dots, &mut sc.partial);
+    // r = filter(b − A·Δv), c = filter(P·r), δ = r·c.
+    let mass = &ctx.particles.mass;
+    let mut q = std::mem::take(&mut sc.q);
+    let dv = std::mem::take(&mut sc.dv);
+    sc.multiply(kernel, rows, cols, mass, diag, &dv, &mut q, false);
+    sc.dv = dv;
+    {
+        let (kind, normal) = (&sc.kind, &sc.normal);
+        chunks3(&mut sc.r, k)
+            .zip(chunks3(&mut sc.c, k))
+            .zip(chunks3_ref(&sc.rhs, k))
+            .zip(chunks3_ref(&q, k))
+            .zip(chunks9(&sc.precond, k))
+            .zip(sc.dots.par_chunks_mut(k))
+            .enumerate()
+            .for_each(|(task, (((((mut r, mut c), b), aq), m), dots))| {
+                let base = task * k;
+                for (j, dot_j) in dots.iter_mut().enumerate() {
+                    let i = base + j;
+                    let (bv, qv) = (get(&b, j), get(&aq, j));
+                    let rv = apply(
+                        kind[i],
+                        nrm(normal, i),
+                        [bv[0] - qv[0], bv[1] - qv[1], bv[2] - qv[2]],
+                    );
+                    let cv = apply(kind[i], nrm(normal, i), precond_mul(&m, j, rv));
+                    put(&mut r, j, rv);
+                    put(&mut c, j, cv);
+                    *dot_j = dot(rv, cv);
+                }
+            });
+    }
+    let mut delta = reduce(&sc.dots, &mut sc.partial);
+    let tol2 = f64::from(settings.tolerance) * f64::from(settings.tolerance);
+    let mut iterations = 0;
+    while delta > tol2 * delta0 && iterations < settings.max_iterations {
+        // q = filter(A·c), c·q.
+        let c = std::mem::take(&mut sc.c);
+        let cq = sc.multiply(kernel, rows, cols, mass, diag, &c, &mut q, true);
+        sc.c = c;
+        if cq <= 0.0 {
+            break;
+        }
+        let alpha = (delta / cq) as f32;
+        // Δv += α·c, r −= α·q, s = P·r, r·s.
+        chunks3(&mut sc.dv, k)
+            .zip(chunks3(&mut sc.r, k))
+            .zip(chunks3(&mut sc.s, k))
+            .zip(chunks3_ref(&sc.c, k))
+            .zip(chunks3_ref(&q, k))
+            .zip(chunks9(&sc.precond, k))
+            .zip(sc.dots.par_chunks_mut(k))
+            .for_each(|((((((dv, r), s), c), q), m), dots)| {
+                simd::implicit_update(kernel, alpha, [dv, r, s], c, q, m, dots);
+            });
+        let delta_old = delta;
+        delta = reduce(&sc.dots, &mut sc.partial);
+        let beta = (delta / delta_old) as f32;
+        // c = filter(s + β·c).
+        chunks3(&mut sc.c, k)
+            .zip(chunks3_ref(&sc.s, k))
+            .zip(sc.kind.par_chunks(k))
+            .zip(chunks3_ref(&sc.normal, k))
+            .for_each(|(((c, s), kind), normal)| {
+                simd::implicit_direction(kernel, beta, c, s, kind, normal);
+            });
+        iterations += 1;
+    }
+    let residual = if delta0 > 0.0 {
+        (delta.max(0.0) / delta0).sqrt() as f32
+    } else {
+        0.0
+    };
+    *cg = CgStats {
+        iterations,
+        residual,
+        converged: delta <= tol2 * delta0,
+    };
+
+    // 4. Friction from the constraint impulses, the new velocities and positions, then the
+    // contacts the substep reached.
+    let dv = std::mem::take(&mut sc.dv);
+    sc.multiply(kernel, rows, cols, mass, diag, &dv, &mut q, false);
+    sc.dv = dv;
+    sc.q = q;
+    let colliders = ctx.colliders;
+    let p = &mut *ctx.particles;
+    let (kind, normal, collider) = (&sc.kind, &sc.normal, &sc.collider);
+    p.position
+        .par_chunks_mut(k)
+        .zip(p.velocity.par_chunks_mut(k))
+        .zip(p.inv_mass.par_chunks(k))
+        .zip(chunks3_ref(&sc.dv, k))
+        .zip(chunks3_ref(&sc.q, k))
+        .zip(chunks3_ref(&sc.rhs, k))
+        .enumerate()
+        .for_each(|(task, (((((x, v), w), dv), aq), b))| {
+            let base = task * k;
+            for j in 0..x.len() {
+                let i = base + j;
+                let filter = match kind[i] {
+                    FREE => Filter::Free,
+                    FIXED => Filter::Fixed,
+                    _ => Filter::Normal(nrm(normal, i).into(), collider[i]),
+                };
+                finish(
+                    &mut x[j],
+                    &mut v[j],
+                    w[j],
+                    get(&dv, j).into(),
+                    filter,
+                    get(&aq, j).into(),
+                    get(&b, j).into(),
+                    colliders,
+                    h,
+                );
+            }
+        });
+    let contacts: u32 = p
+        .position
+        .par_chunks_mut(k)
+        .zip(p.velocity.par_chunks_mut(k))
+        .zip(p.inv_mass.par_chunks(k))
+        .map(|((x, v), w)| resolve_contacts_in(colliders, x, v, w, h))
+        .sum();
+    let constrained: u32 = sc
+        .kind
+        .par_chunks(k)
+        .map(|f| f.iter().filter(|&&f| f == NORMAL).count() as u32)
+        .sum();
+    ctx.contacts.contacts = contacts + constrained;
+}
+
+#[inline]
+fn nrm(normal: &Soa, i: usize) -> [f32; 3] {
+    [normal[0][i], normal[1][i], normal[2][i]]
+}
