@@ -234,20 +234,13 @@ macro_rules! dispatched {
 }
 
 dispatched! {
-    /// [`grid::products`] (implicit Euler's spring terms of one class) compiled for `kernel`.
-    fn implicit_products / implicit_products_avx2 / implicit_products_avx512(
-        job: &grid::Products<'_>,
-        term: &mut [Vec<f32>; 3],
-    ) = grid::products;
-}
-
-dispatched! {
     /// [`grid::band`] (a band of implicit Euler's product A·p) compiled for `kernel`.
     fn implicit_band / implicit_band_avx2 / implicit_band_avx512(
         job: &grid::BandJob<'_>,
-        base: usize,
+        r0: usize,
         y: [&mut [f32]; 3],
         dots: &mut [f32],
+        ring: &mut [f32],
     ) = grid::band;
 }
 

@@ -186,20 +186,24 @@ pub(super) fn reduce(d: &[f32], partial: &mut [f64]) -> f64 {
     partial
         .par_iter_mut()
         .zip(d.par_chunks(PARTICLES_PER_TASK))
-        .for_each(|(p, d)| {
-            let mut acc = [0.0f64; SUM_LANES];
-            let mut lanes = d.chunks_exact(SUM_LANES);
-            for lane in &mut lanes {
-                for (a, &x) in acc.iter_mut().zip(lane) {
-                    *a += f64::from(x);
-                }
-            }
-            for (a, &x) in acc.iter_mut().zip(lanes.remainder()) {
-                *a += f64::from(x);
-            }
-            *p = acc.iter().sum();
-        });
+        .for_each(|(p, d)| *p = task_sum(d));
     partial.iter().sum()
+}
+
+/// One task's sum in [`reduce`] (`d`: the task's values, at most [`PARTICLES_PER_TASK`]).
+#[inline]
+pub(super) fn task_sum(d: &[f32]) -> f64 {
+    let mut acc = [0.0f64; SUM_LANES];
+    let mut lanes = d.chunks_exact(SUM_LANES);
+    for lane in &mut lanes {
+        for (a, &x) in acc.iter_mut().zip(lane) {
+            *a += f64::from(x);
+        }
+    }
+    for (a, &x) in acc.iter_mut().zip(lanes.remainder()) {
+        *a += f64::from(x);
+    }
+    acc.iter().sum()
 }
 
 /// The springs incident to every particle, in spring order: those of particle i are

@@ -1,17 +1,21 @@
 //! Implicit Euler's grid path: the solver of [`super`] on a cloth built by
 //! [`crate::GridBuilder`], with the same arithmetic in the same order, so the same bits as the
-//! reference path (tested), but with no index lists:
+//! reference path (tested with every kernel), but with no index lists:
 //!
 //! - the springs are the grid's six classes (warp, weft, the two diagonals, the two bends),
-//!   each spring stored at its first end, its second end a fixed offset further;
+//!   each spring stored at its first end, its second end a fixed offset further; the blocks
+//!   S and rest lengths are arrays per class;
 //! - the vectors of the conjugate gradient are structure-of-arrays rows (x, y and z apart);
-//! - a product A·p is each class's terms S·(p_a − p_b) over whole row runs, then each row's
-//!   sums over the twelve springs a particle can have, added term by term over row runs in the
-//!   order of their indices in the reference path's spring list (the builder's order), which
-//!   is the order in which the reference path adds them;
-//! - a dot product's terms go through [`super::reduce`], as on the reference path.
-//!
-//! Every loop is over contiguous runs of plain `f32` slices, which the compiler vectorises.
+//! - a product A·p is one pass over bands of rows ([`band`]): for each row, the terms
+//!   S·(p_a − p_b) of the springs whose first ends are in it go into a ring of three rows
+//!   (each band recomputes the two rows above it, so bands never wait for one another), and
+//!   the particle row then adds the twelve springs a particle can have, term by term over row
+//!   runs, in the order of their indices in the reference path's spring list (the builder's),
+//!   which is the order in which the reference path adds them ([`STENCIL`]);
+//! - a dot product's terms go through [`super::reduce`], as on the reference path (the CG's
+//!   update pass sums its own tasks, [`super::task_sum`]);
+//! - the loops run in fixed-size lanes of [`L`] and are compiled for AVX2 and AVX-512 through
+//!   [`crate::simd`] (`implicit_band`, `implicit_update`, `implicit_direction`).
 
 use std::ops::Range;
 
@@ -20,6 +24,7 @@ use rayon::prelude::*;
 
 use super::{
     CgStats, Filter, PARTICLES_PER_TASK, Sym3, assemble, constrain, finish, reduce, spring_params,
+    task_sum,
 };
 use crate::collide::resolve_contacts_in;
 use crate::simd::{self, Kernel};
@@ -243,6 +248,8 @@ pub(crate) struct GridScratch {
     collider: Vec<u32>,
     dots: Vec<f32>,
     partial: Vec<f64>,
+    /// Each band's ring of three rows of terms ([`band`]).
+    ring: Vec<Vec<f32>>,
     /// Each class's rest lengths at the first ends, m (from the topology, once per cloth).
     rest: [Vec<f32>; 6],
     /// The spring count `rest` was built for.
@@ -423,23 +430,14 @@ impl GridScratch {
         self.partial.resize(n.div_ceil(PARTICLES_PER_TASK), 0.0);
     }
 
-    /// Each class's terms S·(p_a − p_b), at the springs' first ends.
-    fn spring_products(&mut self, kernel: Kernel, rows: usize, cols: usize, p: &Soa) {
-        self.class
-            .par_iter_mut()
-            .zip(CLASSES.par_iter())
-            .for_each(|(arrays, &class)| {
-                let (rr, cr) = class.firsts(rows, cols);
-                let job = Products {
-                    p,
-                    block: &arrays.block,
-                    rows: rr,
-                    cols: cr,
-                    width: cols,
-                    offset: class.offset(cols),
-                };
-                simd::implicit_products(kernel, &job, &mut arrays.term);
-            });
+    /// One ring per band of a product A·p.
+    fn size_rings(&mut self, rows: usize, cols: usize) {
+        let bands = rows.div_ceil(band_rows(rows, cols));
+        self.ring.resize_with(bands, Vec::new);
+        for ring in &mut self.ring {
+            ring.clear();
+            ring.resize(3 * ring_row_len(cols), 0.0);
+        }
     }
 
     /// y = A·p (`filtered`: then y is filtered too); returns p·y.
@@ -455,86 +453,85 @@ impl GridScratch {
         y: &mut Soa,
         filtered: bool,
     ) -> f64 {
-        self.spring_products(kernel, rows, cols, p);
-        let band = (PARTICLES_PER_TASK / cols).max(1) * cols;
+        let band_rows = band_rows(rows, cols);
         let job = BandJob {
             rows,
             cols,
             mass,
             diag,
             p,
-            terms: std::array::from_fn(|k| &self.class[k].term),
+            blocks: std::array::from_fn(|k| &self.class[k].block),
             kind: &self.kind,
             normal: &self.normal,
             filtered,
         };
-        chunks3(y, band)
-            .zip(self.dots.par_chunks_mut(band))
+        chunks3(y, band_rows * cols)
+            .zip(self.dots.par_chunks_mut(band_rows * cols))
+            .zip(self.ring.par_iter_mut())
             .enumerate()
-            .for_each(|(task, (y, dots))| {
-                simd::implicit_band(kernel, &job, task * band, y, dots);
+            .for_each(|(task, ((y, dots), ring))| {
+                simd::implicit_band(kernel, &job, task * band_rows, y, dots, ring);
             });
         reduce(&self.dots, &mut self.partial)
     }
 }
 
-/// One class's spring products: the first ends of rows `rows`, columns `cols` of a grid
-/// `width` wide, each spring's second end `offset` further.
-pub(crate) struct Products<'a> {
-    p: &'a Soa,
-    block: &'a [Vec<f32>; 6],
-    rows: Range<usize>,
-    cols: Range<usize>,
-    width: usize,
-    offset: usize,
+/// Rows per band of a product A·p: a band recomputes the terms of the two rows above it, so
+/// bands of at least 16 rows (about 4096 particles).
+fn band_rows(rows: usize, cols: usize) -> usize {
+    (4096 / cols).max(16).min(rows.max(1))
 }
 
-/// `term = S·(p_a − p_b)` for one class (see [`Products`]), run by run.
+/// The terms S·(p_a − p_b) of the springs whose first ends are `run` (indices), the second
+/// ends `off` further, into `t` (the run's length).
 #[inline(always)]
-pub(crate) fn products(job: &Products<'_>, term: &mut Soa) {
-    let [a0, a1, a2, u0, u1, u2] = job.block;
-    let [t0, t1, t2] = term;
-    let [px, py, pz] = job.p;
-    let (cols, off) = (job.width, job.offset);
-    for r in job.rows.clone() {
-        let run = r * cols + job.cols.start..r * cols + job.cols.end;
-        let len = run.len();
-        let far = run.start + off..run.end + off;
-        let (px_a, py_a, pz_a) = (&px[run.clone()], &py[run.clone()], &pz[run.clone()]);
-        let (px_b, py_b, pz_b) = (&px[far.clone()], &py[far.clone()], &pz[far]);
-        let (a0, a1, a2) = (&a0[run.clone()], &a1[run.clone()], &a2[run.clone()]);
-        let (u0, u1, u2) = (&u0[run.clone()], &u1[run.clone()], &u2[run.clone()]);
-        let (t0, t1, t2) = (&mut t0[run.clone()], &mut t1[run.clone()], &mut t2[run]);
-        let spring = |t: [&mut f32; 3], a: [f32; 3], u: [f32; 3], pa: [f32; 3], pb: [f32; 3]| {
-            let (dx, dy, dz) = (pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]);
-            *t[0] = a[0] * dx + u[0] * dy + u[1] * dz;
-            *t[1] = u[0] * dx + a[1] * dy + u[2] * dz;
-            *t[2] = u[1] * dx + u[2] * dy + a[2] * dz;
-        };
-        in_lanes!(len, |j, w| {
-            if w == L {
-                let (t0, t1, t2) = (lane_mut(t0, j), lane_mut(t1, j), lane_mut(t2, j));
-                let (a0, a1, a2) = (lane(a0, j), lane(a1, j), lane(a2, j));
-                let (u0, u1, u2) = (lane(u0, j), lane(u1, j), lane(u2, j));
-                let (xa, ya, za) = (lane(px_a, j), lane(py_a, j), lane(pz_a, j));
-                let (xb, yb, zb) = (lane(px_b, j), lane(py_b, j), lane(pz_b, j));
-                let (mut dx, mut dy, mut dz) = ([0.0; L], [0.0; L], [0.0; L]);
-                sub(&mut dx, xa, xb);
-                sub(&mut dy, ya, yb);
-                sub(&mut dz, za, zb);
-                row3(t0, a0, u0, u1, &dx, &dy, &dz);
-                row3(t1, u0, a1, u2, &dx, &dy, &dz);
-                row3(t2, u1, u2, a2, &dx, &dy, &dz);
-            } else {
-                spring(
-                    [&mut t0[j], &mut t1[j], &mut t2[j]],
-                    [a0[j], a1[j], a2[j]],
-                    [u0[j], u1[j], u2[j]],
-                    [px_a[j], py_a[j], pz_a[j]],
-                    [px_b[j], py_b[j], pz_b[j]],
-                );
-            }
-        });
+fn run_terms(block: &[Vec<f32>; 6], p: &Soa, run: Range<usize>, off: usize, t: [&mut [f32]; 3]) {
+    let [a0, a1, a2, u0, u1, u2] = block;
+    let [t0, t1, t2] = t;
+    let [px, py, pz] = p;
+    let len = run.len();
+    let far = run.start + off..run.end + off;
+    let (px_a, py_a, pz_a) = (&px[run.clone()], &py[run.clone()], &pz[run.clone()]);
+    let (px_b, py_b, pz_b) = (&px[far.clone()], &py[far.clone()], &pz[far]);
+    let (a0, a1, a2) = (&a0[run.clone()], &a1[run.clone()], &a2[run.clone()]);
+    let (u0, u1, u2) = (&u0[run.clone()], &u1[run.clone()], &u2[run]);
+    let (t0, t1, t2) = (&mut t0[..len], &mut t1[..len], &mut t2[..len]);
+    let spring = |t: [&mut f32; 3], a: [f32; 3], u: [f32; 3], pa: [f32; 3], pb: [f32; 3]| {
+        let (dx, dy, dz) = (pa[0] - pb[0], pa[1] - pb[1], pa[2] - pb[2]);
+        *t[0] = a[0] * dx + u[0] * dy + u[1] * dz;
+        *t[1] = u[0] * dx + a[1] * dy + u[2] * dz;
+        *t[2] = u[1] * dx + u[2] * dy + a[2] * dz;
+    };
+    // Whole lanes; a run that is not a multiple of L ends with one more whole lane that
+    // overlaps the one before (each term depends only on its own spring, so the overlap
+    // writes the same values again) instead of scalar leftovers.
+    let lanes = if len >= L { len.div_ceil(L) } else { 0 };
+    let scalar_from = if len >= L { len } else { 0 };
+    for l in 0..lanes {
+        let j = (l * L).min(len - L);
+        {
+            let (t0, t1, t2) = (lane_mut(t0, j), lane_mut(t1, j), lane_mut(t2, j));
+            let (a0, a1, a2) = (lane(a0, j), lane(a1, j), lane(a2, j));
+            let (u0, u1, u2) = (lane(u0, j), lane(u1, j), lane(u2, j));
+            let (xa, ya, za) = (lane(px_a, j), lane(py_a, j), lane(pz_a, j));
+            let (xb, yb, zb) = (lane(px_b, j), lane(py_b, j), lane(pz_b, j));
+            let (mut dx, mut dy, mut dz) = ([0.0; L], [0.0; L], [0.0; L]);
+            sub(&mut dx, xa, xb);
+            sub(&mut dy, ya, yb);
+            sub(&mut dz, za, zb);
+            row3(t0, a0, u0, u1, &dx, &dy, &dz);
+            row3(t1, u0, a1, u2, &dx, &dy, &dz);
+            row3(t2, u1, u2, a2, &dx, &dy, &dz);
+        }
+    }
+    for j in scalar_from..len {
+        spring(
+            [&mut t0[j], &mut t1[j], &mut t2[j]],
+            [a0[j], a1[j], a2[j]],
+            [u0[j], u1[j], u2[j]],
+            [px_a[j], py_a[j], pz_a[j]],
+            [px_b[j], py_b[j], pz_b[j]],
+        );
     }
 }
 
@@ -545,44 +542,108 @@ pub(crate) struct BandJob<'a> {
     mass: &'a [f32],
     diag: f32,
     p: &'a Soa,
-    terms: [&'a Soa; 6],
+    blocks: [&'a [Vec<f32>; 6]; 6],
     kind: &'a [u8],
     normal: &'a Soa,
     filtered: bool,
 }
 
-/// The rows of y = A·p from particle `base` on (whole rows, `y`'s length): (m + h·d)·p, the
-/// stencil's terms, the filter when asked; `dots` gets p·y per particle.
+/// Floats of one row of a band's ring: every class's three components of a row's terms.
+fn ring_row_len(cols: usize) -> usize {
+    CLASSES.len() * 3 * cols
+}
+
+/// The rows of y = A·p from row `r0` on (whole rows, `y`'s length), in one pass: the terms
+/// of each row's springs (by their first ends, the two rows above the band's first recomputed)
+/// go into `ring`, three rows of terms that stay in the cache, and each particle row then
+/// takes (m + h·d)·p, the stencil's terms from the ring, the filter when asked; `dots` gets
+/// p·y per particle.
 #[inline(always)]
-pub(crate) fn band(job: &BandJob<'_>, base: usize, mut y: [&mut [f32]; 3], dots: &mut [f32]) {
+pub(crate) fn band(
+    job: &BandJob<'_>,
+    r0: usize,
+    mut y: [&mut [f32]; 3],
+    dots: &mut [f32],
+    ring: &mut [f32],
+) {
+    let (rows, cols) = (job.rows, job.cols);
     let p = job.p;
-    let len = dots.len();
-    let at = base..base + len;
-    let (px, py, pz) = (&p[0][at.clone()], &p[1][at.clone()], &p[2][at.clone()]);
-    {
-        let m = &job.mass[at.clone()];
+    let row_len = ring_row_len(cols);
+    let band_rows = dots.len() / cols;
+    for r in r0.saturating_sub(2)..r0 + band_rows {
+        // The terms of the springs whose first ends are in row r, into slot r mod 3.
+        let slot = &mut ring[(r % 3) * row_len..(r % 3 + 1) * row_len];
+        for (class, out) in CLASSES.iter().zip(slot.chunks_exact_mut(3 * cols)) {
+            let (rr, cr) = class.firsts(rows, cols);
+            if !rr.contains(&r) || cr.is_empty() {
+                continue;
+            }
+            let (t0, rest) = out.split_at_mut(cols);
+            let (t1, t2) = rest.split_at_mut(cols);
+            let t = [
+                &mut t0[cr.clone()],
+                &mut t1[cr.clone()],
+                &mut t2[cr.clone()],
+            ];
+            let run = r * cols + cr.start..r * cols + cr.end;
+            run_terms(job.blocks[class.index()], p, run, class.offset(cols), t);
+        }
+        if r < r0 {
+            continue;
+        }
+        // Particle row r.
+        let row = (r - r0) * cols;
+        let at = r * cols..(r + 1) * cols;
+        let (px, py, pz) = (&p[0][at.clone()], &p[1][at.clone()], &p[2][at.clone()]);
         let [yx, yy, yz] = &mut y;
-        let (yx, yy, yz) = (&mut yx[..len], &mut yy[..len], &mut yz[..len]);
-        for j in 0..len {
+        let (yx, yy, yz) = (
+            &mut yx[row..row + cols],
+            &mut yy[row..row + cols],
+            &mut yz[row..row + cols],
+        );
+        let m = &job.mass[at.clone()];
+        for j in 0..cols {
             let s = m[j] + job.diag;
             (yx[j], yy[j], yz[j]) = (s * px[j], s * py[j], s * pz[j]);
         }
-    }
-    stencil(job.rows, job.cols, base / job.cols, &mut y, &job.terms);
-    let [yx, yy, yz] = &mut y;
-    let (yx, yy, yz) = (&mut yx[..len], &mut yy[..len], &mut yz[..len]);
-    if job.filtered {
-        let k = &job.kind[at.clone()];
-        let n = job.normal;
-        let (nx, ny, nz) = (&n[0][at.clone()], &n[1][at.clone()], &n[2][at]);
-        for j in 0..len {
-            let v = apply(k[j], [nx[j], ny[j], nz[j]], [yx[j], yy[j], yz[j]]);
-            [yx[j], yy[j], yz[j]] = v;
-            dots[j] = dot([px[j], py[j], pz[j]], v);
+        for &(class, second) in &STENCIL {
+            let (rr, cr) = class.ends(rows, cols, second);
+            if !rr.contains(&r) || cr.is_empty() {
+                continue;
+            }
+            // The spring's first end: this particle, or (r − dr, c − dc).
+            let (dr, dc) = if second { class.step() } else { (0, 0) };
+            let slot = (r - dr) % 3;
+            let base = slot * row_len + class.index() * 3 * cols;
+            let from = cr.start.wrapping_add_signed(-dc)..cr.end.wrapping_add_signed(-dc);
+            for (k, dst) in [&mut *yx, &mut *yy, &mut *yz].into_iter().enumerate() {
+                let src = &ring[base + k * cols..base + (k + 1) * cols][from.clone()];
+                let dst = &mut dst[cr.clone()];
+                if second {
+                    for (d, s) in dst.iter_mut().zip(src) {
+                        *d -= *s;
+                    }
+                } else {
+                    for (d, s) in dst.iter_mut().zip(src) {
+                        *d += *s;
+                    }
+                }
+            }
         }
-    } else {
-        for j in 0..len {
-            dots[j] = dot([px[j], py[j], pz[j]], [yx[j], yy[j], yz[j]]);
+        let dots = &mut dots[row..row + cols];
+        if job.filtered {
+            let k = &job.kind[at.clone()];
+            let n = job.normal;
+            let (nx, ny, nz) = (&n[0][at.clone()], &n[1][at.clone()], &n[2][at]);
+            for j in 0..cols {
+                let v = apply(k[j], [nx[j], ny[j], nz[j]], [yx[j], yy[j], yz[j]]);
+                [yx[j], yy[j], yz[j]] = v;
+                dots[j] = dot([px[j], py[j], pz[j]], v);
+            }
+        } else {
+            for j in 0..cols {
+                dots[j] = dot([px[j], py[j], pz[j]], [yx[j], yy[j], yz[j]]);
+            }
         }
     }
 }
@@ -746,6 +807,7 @@ pub(super) fn substep(
     let settings = cfg.implicit;
     let kernel = simd::kernel();
     sc.size(n);
+    sc.size_rings(rows, cols);
     let diag = if cfg.forces.damping {
         h * cfg.damping
     } else {
@@ -953,11 +1015,14 @@ pub(super) fn substep(
             .zip(chunks3_ref(&q, k))
             .zip(chunks9(&sc.precond, k))
             .zip(sc.dots.par_chunks_mut(k))
-            .for_each(|((((((dv, r), s), c), q), m), dots)| {
+            .zip(sc.partial.par_iter_mut())
+            .for_each(|(((((((dv, r), s), c), q), m), dots), partial)| {
                 simd::implicit_update(kernel, alpha, [dv, r, s], c, q, m, dots);
+                // The task's share of `reduce`, in the same pass.
+                *partial = task_sum(dots);
             });
         let delta_old = delta;
-        delta = reduce(&sc.dots, &mut sc.partial);
+        delta = sc.partial.iter().sum();
         let beta = (delta / delta_old) as f32;
         // c = filter(s + β·c).
         chunks3(&mut sc.c, k)
