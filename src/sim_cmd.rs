@@ -71,8 +71,9 @@ pub struct SimArgs {
     #[arg(long, value_name = "N", default_value = "1", value_parser = parse_threads)]
     pub threads: usize,
     /// The grid paths' kernel: reference, portable, avx2 or avx512 (default: the widest this
-    /// CPU runs). For the explicit integrators all give the same bits; for XPBD the grid
-    /// kernels give the same bits and `reference` runs XPBD's storage-order sweeps.
+    /// CPU runs). For the explicit integrators and implicit Euler all give the same bits; for
+    /// XPBD the grid kernels give the same bits and `reference` runs XPBD's storage-order
+    /// sweeps.
     #[arg(long, value_name = "NAME", value_parser = parse_kernel)]
     pub kernel: Option<cloth_core::simd::Kernel>,
     #[arg(

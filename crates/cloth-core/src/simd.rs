@@ -34,12 +34,12 @@ use crate::solver::grid_xpbd::{self, AirCoefficients, Shared};
 use crate::solver::implicit::grid;
 
 /// Which code runs the substeps of the explicit integrators (forward Euler, symplectic
-/// Euler, position Verlet) on a grid cloth.
+/// Euler, position Verlet), of implicit Euler and of XPBD on a grid cloth.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Kernel {
     /// The reference path: forces per spring through the index arrays
-    /// ([`crate::forces`]), then integrate, then contacts. Also what every non-grid cloth,
-    /// every other integrator and a cloth with air drag use.
+    /// ([`crate::forces`]), then integrate, then contacts; implicit Euler's solve through
+    /// index lists; XPBD's storage-order sweeps. Also what every non-grid cloth uses.
     Reference,
     /// The grid fast path for the baseline instruction set (SSE2 on x86-64).
     Portable,
