@@ -280,6 +280,39 @@ fn implicit_cg_reports_its_iterations_and_convergence() {
     assert!(s.solver.residual > config.implicit.tolerance);
 }
 
+/// What [`implicit_trace`] records per step: the CG's iterations, its residual's bits and the
+/// contact count.
+type StepTrace = (u32, u32, u32);
+
+/// `steps` steps of a clone of `sim` on a pool of `threads` threads with `kernel` (`None`:
+/// the default): each step's [`StepTrace`], then the bits of every position and velocity.
+fn implicit_trace(
+    sim: &Simulation,
+    steps: usize,
+    kernel: Option<cloth_core::simd::Kernel>,
+    threads: usize,
+) -> (Vec<StepTrace>, Vec<[u32; 3]>, Vec<[u32; 3]>) {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("pool");
+    let mut sim = sim.clone();
+    pool.install(|| {
+        cloth_core::simd::set_kernel(kernel).expect("kernel");
+        let mut trace = Vec::new();
+        for _ in 0..steps {
+            let s = sim.step().expect("step");
+            trace.push((s.solver.iterations, s.solver.residual.to_bits(), s.contacts));
+        }
+        cloth_core::simd::set_kernel(None).expect("kernel");
+        let p = sim.particles();
+        let bits = |v: &[Vec3]| -> Vec<[u32; 3]> {
+            v.iter().map(|x| x.to_array().map(f32::to_bits)).collect()
+        };
+        (trace, bits(&p.position), bits(&p.velocity))
+    })
+}
+
 /// Determinism: implicit Euler's parallel passes run over a fixed partition (1024 particles,
 /// 4096 springs per task) and add the dot products' partial sums in task order, so 1, 2 and 3
 /// threads give the same bits. The 48² drape (3 particle tasks, 4 spring tasks) with a pinned
@@ -289,25 +322,7 @@ fn implicit_cg_reports_its_iterations_and_convergence() {
 fn implicit_euler_is_bit_identical_across_threads() {
     let mut sim = presets::drape(48, Integrator::ImplicitEuler).expect("drape");
     sim.pin(0).expect("pin");
-    let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("pool");
-        let mut sim = sim.clone();
-        pool.install(|| {
-            let mut trace = Vec::new();
-            for _ in 0..40 {
-                let s = sim.step().expect("step");
-                trace.push((s.solver.iterations, s.solver.residual.to_bits(), s.contacts));
-            }
-            let p = sim.particles();
-            let bits = |v: &[Vec3]| -> Vec<[u32; 3]> {
-                v.iter().map(|x| x.to_array().map(f32::to_bits)).collect()
-            };
-            (trace, bits(&p.position), bits(&p.velocity))
-        })
-    };
+    let run = |threads: usize| implicit_trace(&sim, 40, None, threads);
     let one = run(1);
     assert!(
         one.0.iter().any(|&(_, _, contacts)| contacts > 100),
@@ -333,7 +348,7 @@ fn implicit_euler_is_bit_identical_across_threads() {
 fn implicit_grid_path_gives_the_reference_bits() {
     use cloth_core::Collider;
     use cloth_core::glam::Quat;
-    use cloth_core::simd::{self, Kernel};
+    use cloth_core::simd::Kernel;
     let mut scenes = Vec::new();
     let drape = GridBuilder::new(40, 24)
         .size(1.2, 0.72)
@@ -377,37 +392,16 @@ fn implicit_grid_path_gives_the_reference_bits() {
         }
         scenes.push(("small", small, 20));
     }
-    let run = |sim: &Simulation, steps: usize, kernel: Kernel, threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("pool");
-        let mut sim = sim.clone();
-        pool.install(|| {
-            simd::set_kernel(Some(kernel)).expect("kernel");
-            let mut trace = Vec::new();
-            for _ in 0..steps {
-                let s = sim.step().expect("step");
-                trace.push((s.solver.iterations, s.solver.residual.to_bits()));
-            }
-            simd::set_kernel(None).expect("kernel");
-            let p = sim.particles();
-            let bits = |v: &[Vec3]| -> Vec<[u32; 3]> {
-                v.iter().map(|x| x.to_array().map(f32::to_bits)).collect()
-            };
-            (trace, bits(&p.position), bits(&p.velocity))
-        })
-    };
     for (name, sim, steps) in &scenes {
-        let reference = run(sim, *steps, Kernel::Reference, 1);
+        let reference = implicit_trace(sim, *steps, Some(Kernel::Reference), 1);
         assert!(
-            reference.0.iter().any(|&(it, _)| it > 1),
+            reference.0.iter().any(|&(it, _, _)| it > 1),
             "{name}: the CG must iterate"
         );
         for kernel in Kernel::ALL.into_iter().filter(|k| k.is_available()) {
             for threads in [1, 2] {
                 assert!(
-                    run(sim, *steps, kernel, threads) == reference,
+                    implicit_trace(sim, *steps, Some(kernel), threads) == reference,
                     "{name}: {kernel:?} on {threads} threads differs from the reference"
                 );
             }

@@ -38,6 +38,7 @@ use super::SubstepCtx;
 use crate::collide::{Collider, resolve_contacts_in};
 use crate::config::SimConfig;
 use crate::forces::accumulate;
+use crate::particles::Particles;
 use crate::topology::{Spring, SpringKind};
 
 /// Particles per task of the parallel passes over particles (a fixed partition).
@@ -126,6 +127,34 @@ pub(crate) struct CgStats {
     pub residual: f32,
     /// Whether the residual reached the tolerance.
     pub converged: bool,
+}
+
+impl CgStats {
+    /// The figures of a solve that stopped after `iterations` at δ = rᵀP⁻¹r, against
+    /// δ0 = bᵀP⁻¹b and the squared tolerance `tol2`.
+    fn new(iterations: u32, delta: f64, delta0: f64, tol2: f64) -> Self {
+        let residual = if delta0 > 0.0 {
+            (delta.max(0.0) / delta0).sqrt() as f32
+        } else {
+            0.0
+        };
+        Self {
+            iterations,
+            residual,
+            converged: delta <= tol2 * delta0,
+        }
+    }
+}
+
+/// The contacts the substep's new positions reached, projected out with the shared contact
+/// response (particles on their own, in parallel tasks); returns their number.
+fn new_contacts(p: &mut Particles, colliders: &[Collider], h: f32) -> u32 {
+    p.position
+        .par_chunks_mut(PARTICLES_PER_TASK)
+        .zip(p.velocity.par_chunks_mut(PARTICLES_PER_TASK))
+        .zip(p.inv_mass.par_chunks(PARTICLES_PER_TASK))
+        .map(|((x, v), w)| resolve_contacts_in(colliders, x, v, w, h))
+        .sum()
 }
 
 /// Scratch of the implicit solver, sized once per cloth.
@@ -608,16 +637,7 @@ pub(super) fn substep(
             });
         iterations += 1;
     }
-    let residual = if delta0 > 0.0 {
-        (delta.max(0.0) / delta0).sqrt() as f32
-    } else {
-        0.0
-    };
-    *cg = CgStats {
-        iterations,
-        residual,
-        converged: delta <= tol2 * delta0,
-    };
+    *cg = CgStats::new(iterations, delta, delta0, tol2);
 
     // 4. Constraint impulses e = A·Δv − b on contacts, for friction; the new velocities and
     // positions; then the contacts the substep reached.
@@ -642,13 +662,7 @@ pub(super) fn substep(
                 finish(x, v, w, *dv, *f, *aq, *b, colliders, h);
             }
         });
-    let contacts: u32 = p
-        .position
-        .par_chunks_mut(PARTICLES_PER_TASK)
-        .zip(p.velocity.par_chunks_mut(PARTICLES_PER_TASK))
-        .zip(p.inv_mass.par_chunks(PARTICLES_PER_TASK))
-        .map(|((x, v), w)| resolve_contacts_in(colliders, x, v, w, h))
-        .sum();
+    let contacts = new_contacts(p, colliders, h);
     let constrained: u32 = sc
         .filter
         .par_chunks(PARTICLES_PER_TASK)

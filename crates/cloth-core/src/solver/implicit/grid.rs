@@ -23,10 +23,9 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{
-    CgStats, Filter, PARTICLES_PER_TASK, Sym3, assemble, constrain, finish, reduce, spring_params,
-    task_sum,
+    CgStats, Filter, PARTICLES_PER_TASK, Sym3, assemble, constrain, finish, new_contacts, reduce,
+    spring_params, task_sum,
 };
-use crate::collide::resolve_contacts_in;
 use crate::simd::{self, Kernel};
 use crate::solver::SubstepCtx;
 use crate::topology::{SpringKind, Topology};
@@ -1034,16 +1033,7 @@ pub(super) fn substep(
             });
         iterations += 1;
     }
-    let residual = if delta0 > 0.0 {
-        (delta.max(0.0) / delta0).sqrt() as f32
-    } else {
-        0.0
-    };
-    *cg = CgStats {
-        iterations,
-        residual,
-        converged: delta <= tol2 * delta0,
-    };
+    *cg = CgStats::new(iterations, delta, delta0, tol2);
 
     // 4. Friction from the constraint impulses, the new velocities and positions, then the
     // contacts the substep reached.
@@ -1084,13 +1074,7 @@ pub(super) fn substep(
                 );
             }
         });
-    let contacts: u32 = p
-        .position
-        .par_chunks_mut(k)
-        .zip(p.velocity.par_chunks_mut(k))
-        .zip(p.inv_mass.par_chunks(k))
-        .map(|((x, v), w)| resolve_contacts_in(colliders, x, v, w, h))
-        .sum();
+    let contacts = new_contacts(p, colliders, h);
     let constrained: u32 = sc
         .kind
         .par_chunks(k)
