@@ -97,16 +97,11 @@ fn drape(c: &mut Criterion) {
     }
 }
 
-/// Implicit Euler's drape as the `implicit-drape` scene runs it (128², 2 substeps per
-/// 1/60 s, CG to a relative residual of 10⁻³), warmed onto the ball, on 1 and 2 threads.
+/// Implicit Euler's drape, the built-in `implicit-drape` scene (128², 2 substeps per 1/60 s,
+/// CG to a relative residual of 10⁻³), warmed onto the ball, on 1 and 2 threads.
 fn implicit_drape(c: &mut Criterion) {
-    let mut sim = presets::drape(128, Integrator::ImplicitEuler).expect("drape scene");
-    let mut config = *sim.config();
-    config.substeps = 2;
-    config.implicit.tolerance = 1e-3;
-    config.implicit.max_iterations = 300;
-    sim.set_config(config).expect("config");
-    let sim = warmed(sim, 30);
+    let scene = cloth_core::scene::builtin("implicit-drape").expect("built-in scene");
+    let sim = warmed(scene.build().expect("implicit-drape scene"), 30);
     bench_on(c, "implicit-drape-128/1t", &sim, 1, None);
     bench_on(c, "implicit-drape-128/2t", &sim, 2, None);
 }
