@@ -155,10 +155,7 @@ pub fn kernel_for(sim: &crate::Simulation) -> Kernel {
         && grid_xpbd::applies(cfg, sim.topology(), sim.particles().any_pinned());
     let implicit = cfg.integrator == crate::Integrator::ImplicitEuler
         && k != Kernel::Reference
-        && sim
-            .topology()
-            .grid()
-            .is_some_and(|(rows, cols)| rows >= 2 && cols >= 2);
+        && grid::applies(sim.topology());
     if xpbd || implicit || grid_kernel::applies(k, cfg.integrator, sim.topology()) {
         k
     } else {

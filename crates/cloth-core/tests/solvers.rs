@@ -399,6 +399,11 @@ fn implicit_grid_path_gives_the_reference_bits() {
             "{name}: the CG must iterate"
         );
         for kernel in Kernel::ALL.into_iter().filter(|k| k.is_available()) {
+            // The grid path really runs with the other kernels (the comparison alone would
+            // pass if the reference path ran with every kernel).
+            cloth_core::simd::set_kernel(Some(kernel)).expect("kernel");
+            assert_eq!(cloth_core::simd::kernel_for(sim), kernel, "{name}");
+            cloth_core::simd::set_kernel(None).expect("kernel");
             for threads in [1, 2] {
                 assert!(
                     implicit_trace(sim, *steps, Some(kernel), threads) == reference,

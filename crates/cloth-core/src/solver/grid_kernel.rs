@@ -85,7 +85,7 @@ pub(super) const CLASSES: [(usize, usize, usize, SpringKind); 6] = [
 /// 12 ordered force terms) is latency-bound, and two independent vectors per iteration keep
 /// the units busy (the peer scene ran 15 % faster than with 16 lanes, and no faster with 64;
 /// the contact passes' chunk skips at 16 lanes gained nothing).
-const LANES: usize = 32;
+pub(crate) const LANES: usize = 32;
 
 /// Front padding of the force rows (two slots, for the `c − 2` of horizontal bend springs).
 pub(crate) const PAD: usize = 2;
@@ -1911,13 +1911,13 @@ fn chunks<const K: usize>(s: [&[f32]; K], i: usize) -> [&[f32; LANES]; K] {
 
 /// `LANES` elements of `s` from `i`, as an array.
 #[inline(always)]
-fn lanes(s: &[f32], i: usize) -> &[f32; LANES] {
+pub(crate) fn lanes(s: &[f32], i: usize) -> &[f32; LANES] {
     s[i..i + LANES].try_into().expect("LANES elements")
 }
 
 /// `LANES` elements of `s` from `i`, as a mutable array.
 #[inline(always)]
-fn lanes_mut(s: &mut [f32], i: usize) -> &mut [f32; LANES] {
+pub(crate) fn lanes_mut(s: &mut [f32], i: usize) -> &mut [f32; LANES] {
     (&mut s[i..i + LANES]).try_into().expect("LANES elements")
 }
 

@@ -183,8 +183,9 @@ pub(crate) struct ImplicitScratch {
     grid: grid::GridScratch,
 }
 
+/// Sizes `v` for `n` entries. Nothing is cleared: every pass writes the entries it later reads,
+/// so a substep on the same cloth neither allocates nor fills its scratch again.
 fn resize(v: &mut Vec<Vec3>, n: usize) {
-    v.clear();
     v.resize(n, Vec3::ZERO);
 }
 
@@ -445,7 +446,7 @@ pub(super) fn substep(
     let cfg = ctx.config;
     let settings = cfg.implicit;
     accumulate(cfg, ctx.topology, ctx.particles, ctx.wind, force);
-    if crate::simd::kernel() != crate::simd::Kernel::Reference && grid::applies(ctx) {
+    if crate::simd::kernel() != crate::simd::Kernel::Reference && grid::applies(ctx.topology) {
         grid::substep(ctx, force, &mut sc.grid, cg);
         return;
     }
@@ -453,11 +454,9 @@ pub(super) fn substep(
     let springs = ctx.topology.springs();
     sc.incident.build(n, springs);
     let tasks = n.div_ceil(PARTICLES_PER_TASK);
-    sc.partial.clear();
+    // Sized, not cleared (see `resize`).
     sc.partial.resize(tasks, 0.0);
-    sc.dots.clear();
     sc.dots.resize(n, 0.0);
-    sc.block.clear();
     sc.block.resize(springs.len(), Sym3::default());
     resize(&mut sc.term, springs.len());
     for v in [
@@ -470,9 +469,7 @@ pub(super) fn substep(
     ] {
         resize(v, n);
     }
-    sc.precond.clear();
     sc.precond.resize(n, Mat3::ZERO);
-    sc.filter.clear();
     sc.filter.resize(n, Filter::Free);
 
     // 1. The spring blocks S and the terms h²·K·(v_b − v_a) of b = h·f + h²·(∂f/∂x)·v.

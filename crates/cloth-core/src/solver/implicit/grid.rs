@@ -19,7 +19,7 @@
 
 use std::ops::Range;
 
-use glam::Vec3;
+use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
 use super::{
@@ -28,6 +28,8 @@ use super::{
 };
 use crate::simd::{self, Kernel};
 use crate::solver::SubstepCtx;
+// The fixed-size chunks the vectorised loops work in: the explicit grid path's, `L` lanes.
+use crate::solver::grid_kernel::{LANES as L, lanes as lane, lanes_mut as lane_mut};
 use crate::topology::{SpringKind, Topology};
 
 /// The grid's spring classes, each at its first end `(r, c)`, its second end at
@@ -132,21 +134,6 @@ impl Class {
     }
 }
 
-/// Lanes of the fixed-size chunks the vectorised loops work in.
-const L: usize = 32;
-
-/// `s[j..j + L]` as an array (the loops over it then need no bounds checks).
-#[inline(always)]
-fn lane(s: &[f32], j: usize) -> &[f32; L] {
-    s[j..j + L].try_into().expect("L entries")
-}
-
-/// `s[j..j + L]` as a mutable array.
-#[inline(always)]
-fn lane_mut(s: &mut [f32], j: usize) -> &mut [f32; L] {
-    (&mut s[j..j + L]).try_into().expect("L entries")
-}
-
 /// y += a·x, lane by lane (a function of its own so that the references are known not to
 /// overlap, which lets the compiler vectorise it).
 #[inline(always)]
@@ -210,9 +197,9 @@ macro_rules! in_lanes {
 /// Three components in separate arrays.
 type Soa = [Vec<f32>; 3];
 
+/// Sizes the three arrays for `n` entries, as [`super::resize`] (nothing cleared).
 fn resize_soa(v: &mut Soa, n: usize) {
     for a in v {
-        a.clear();
         a.resize(n, 0.0);
     }
 }
@@ -287,16 +274,11 @@ fn chunks9(v: &[Vec<f32>; 9], k: usize) -> impl IndexedParallelIterator<Item = [
         .map(|((a, b, c), (d, e, f), (g, h, i))| [a, b, c, d, e, f, g, h, i])
 }
 
-/// P·r with P's nine entries column-major, as glam's `Mat3 * Vec3`.
+/// P·r for particle `j` of a chunk, P's nine entries column-major: glam's `Mat3 * Vec3`, the
+/// reference path's product.
 #[inline]
 fn precond_mul(m: &[&[f32]; 9], j: usize, r: [f32; 3]) -> [f32; 3] {
-    let col = |k: usize| [m[3 * k][j], m[3 * k + 1][j], m[3 * k + 2][j]];
-    let (a, b, c) = (col(0), col(1), col(2));
-    [
-        a[0] * r[0] + b[0] * r[1] + c[0] * r[2],
-        a[1] * r[0] + b[1] * r[1] + c[1] * r[2],
-        a[2] * r[0] + b[2] * r[1] + c[2] * r[2],
-    ]
+    (Mat3::from_cols_array(&m.map(|a| a[j])) * Vec3::from(r)).into()
 }
 
 /// [`Filter::apply`] on one particle, written with selects so that a loop of it vectorises
@@ -396,10 +378,12 @@ impl GridScratch {
         self.rest_built = topology.springs().len();
     }
 
+    /// Sizes the scratch for `n` particles. Nothing is cleared: every pass writes the entries
+    /// it later reads (a class's entries outside its first ends are never read), so a substep
+    /// on the same cloth neither allocates nor fills its scratch again.
     fn size(&mut self, n: usize) {
         for class in &mut self.class {
             for b in &mut class.block {
-                b.clear();
                 b.resize(n, 0.0);
             }
             resize_soa(&mut class.term, n);
@@ -416,25 +400,19 @@ impl GridScratch {
             resize_soa(v, n);
         }
         for p in &mut self.precond {
-            p.clear();
             p.resize(n, 0.0);
         }
-        self.kind.clear();
         self.kind.resize(n, FREE);
-        self.collider.clear();
         self.collider.resize(n, 0);
-        self.dots.clear();
         self.dots.resize(n, 0.0);
-        self.partial.clear();
         self.partial.resize(n.div_ceil(PARTICLES_PER_TASK), 0.0);
     }
 
-    /// One ring per band of a product A·p.
+    /// One ring per band of a product A·p (a row of the ring is written before it is read).
     fn size_rings(&mut self, rows: usize, cols: usize) {
         let bands = rows.div_ceil(band_rows(rows, cols));
         self.ring.resize_with(bands, Vec::new);
         for ring in &mut self.ring {
-            ring.clear();
             ring.resize(3 * ring_row_len(cols), 0.0);
         }
     }
@@ -784,8 +762,8 @@ pub(crate) fn direction(
 
 /// Whether the grid path runs `ctx`'s cloth: one built by [`crate::GridBuilder`] (its springs
 /// in the builder's order).
-pub(super) fn applies(ctx: &SubstepCtx<'_>) -> bool {
-    ctx.topology
+pub(crate) fn applies(topology: &Topology) -> bool {
+    topology
         .grid()
         .is_some_and(|(rows, cols)| rows >= 2 && cols >= 2)
 }
