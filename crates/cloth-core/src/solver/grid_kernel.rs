@@ -1912,13 +1912,25 @@ fn chunks<const K: usize>(s: [&[f32]; K], i: usize) -> [&[f32; LANES]; K] {
 /// `LANES` elements of `s` from `i`, as an array.
 #[inline(always)]
 pub(crate) fn lanes(s: &[f32], i: usize) -> &[f32; LANES] {
-    s[i..i + LANES].try_into().expect("LANES elements")
+    lanes_of(s, i)
 }
 
 /// `LANES` elements of `s` from `i`, as a mutable array.
 #[inline(always)]
 pub(crate) fn lanes_mut(s: &mut [f32], i: usize) -> &mut [f32; LANES] {
-    (&mut s[i..i + LANES]).try_into().expect("LANES elements")
+    lanes_of_mut(s, i)
+}
+
+/// `N` elements of `s` from `i`, as an array.
+#[inline(always)]
+pub(crate) fn lanes_of<const N: usize>(s: &[f32], i: usize) -> &[f32; N] {
+    s[i..i + N].try_into().expect("N elements")
+}
+
+/// `N` elements of `s` from `i`, as a mutable array.
+#[inline(always)]
+pub(crate) fn lanes_of_mut<const N: usize>(s: &mut [f32], i: usize) -> &mut [f32; N] {
+    (&mut s[i..i + N]).try_into().expect("N elements")
 }
 
 /// Sums the forces on row `s` in the reference's order and integrates it into `out` (x, y, z,

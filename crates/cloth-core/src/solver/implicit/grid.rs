@@ -12,9 +12,12 @@
 //!   the particle row then adds the twelve springs a particle can have, term by term over row
 //!   runs, in the order of their indices in the reference path's spring list (the builder's),
 //!   which is the order in which the reference path adds them ([`STENCIL`]);
-//! - a dot product's terms go through [`super::reduce`], as on the reference path (the CG's
-//!   update pass sums its own tasks, [`super::task_sum`]);
-//! - the loops run in fixed-size lanes of [`L`] and are compiled for AVX2 and AVX-512 through
+//! - a dot product's terms are summed as [`super::reduce`] sums them on the reference path,
+//!   task by task ([`super::task_sum`]), but in the passes that compute them where they can:
+//!   the CG's update pass sums its own tasks, and each band of a product the tasks that lie
+//!   within it (the few that straddle two bands are summed after the pass);
+//! - the loops run in fixed-size lanes of [`L`] (the spring terms in lanes of [`T`], which
+//!   keep their operands in registers) and are compiled for AVX2 and AVX-512 through
 //!   [`crate::simd`] (`implicit_band`, `implicit_update`, `implicit_direction`).
 
 use std::ops::Range;
@@ -29,7 +32,9 @@ use super::{
 use crate::simd::{self, Kernel};
 use crate::solver::SubstepCtx;
 // The fixed-size chunks the vectorised loops work in: the explicit grid path's, `L` lanes.
-use crate::solver::grid_kernel::{LANES as L, lanes as lane, lanes_mut as lane_mut};
+use crate::solver::grid_kernel::{
+    LANES as L, lanes as lane, lanes_mut as lane_mut, lanes_of, lanes_of_mut,
+};
 use crate::topology::{SpringKind, Topology};
 
 /// The grid's spring classes, each at its first end `(r, c)`, its second end at
@@ -134,6 +139,17 @@ impl Class {
     }
 }
 
+/// The chunks of [`run_terms`]: one AVX-512 register (two AVX2 ones) of `f32`, which leaves
+/// a chunk's fifteen operands and three results in registers (twice as many spill with
+/// [`L`]).
+const T: usize = 16;
+
+/// A copy of the [`T`] entries of `s` from `i`.
+#[inline(always)]
+fn copy(s: &[f32], i: usize) -> [f32; T] {
+    *lanes_of(s, i)
+}
+
 /// y += a·x, lane by lane (a function of its own so that the references are known not to
 /// overlap, which lets the compiler vectorise it).
 #[inline(always)]
@@ -153,24 +169,24 @@ fn axmy(y: &mut [f32; L], a: f32, x: &[f32; L]) {
 
 /// out = a·x + b·y + c·z, lane by lane (a row of a 3 × 3 block times a vector).
 #[inline(always)]
-fn row3(
-    out: &mut [f32; L],
-    a: &[f32; L],
-    b: &[f32; L],
-    c: &[f32; L],
-    x: &[f32; L],
-    y: &[f32; L],
-    z: &[f32; L],
+fn row3<const N: usize>(
+    out: &mut [f32; N],
+    a: &[f32; N],
+    b: &[f32; N],
+    c: &[f32; N],
+    x: &[f32; N],
+    y: &[f32; N],
+    z: &[f32; N],
 ) {
-    for k in 0..L {
+    for k in 0..N {
         out[k] = a[k] * x[k] + b[k] * y[k] + c[k] * z[k];
     }
 }
 
 /// out = p_a − p_b, lane by lane.
 #[inline(always)]
-fn sub(out: &mut [f32; L], a: &[f32; L], b: &[f32; L]) {
-    for k in 0..L {
+fn sub(out: &mut [f32; T], a: &[f32; T], b: &[f32; T]) {
+    for k in 0..T {
         out[k] = a[k] - b[k];
     }
 }
@@ -236,6 +252,8 @@ pub(crate) struct GridScratch {
     partial: Vec<f64>,
     /// Each band's ring of three rows of terms ([`band`]).
     ring: Vec<Vec<f32>>,
+    /// Each band's sums of the tasks of [`reduce`] that lie within it ([`Self::multiply`]).
+    band_sums: Vec<Vec<f64>>,
     /// Each class's rest lengths at the first ends, m (from the topology, once per cloth).
     rest: [Vec<f32>; 6],
     /// The spring count `rest` was built for.
@@ -415,9 +433,16 @@ impl GridScratch {
         for ring in &mut self.ring {
             ring.resize(3 * ring_row_len(cols), 0.0);
         }
+        self.band_sums.resize_with(bands, Vec::new);
+        let tasks = (band_rows(rows, cols) * cols).div_ceil(PARTICLES_PER_TASK);
+        for sums in &mut self.band_sums {
+            sums.resize(tasks, 0.0);
+        }
     }
 
-    /// y = A·p (`filtered`: then y is filtered too); returns p·y.
+    /// y = A·p (`filtered`: then y is filtered too); returns p·y, the sum of [`reduce`]: each
+    /// band sums the tasks that lie within it in the same pass, and the tasks that straddle
+    /// two bands are summed after them.
     #[allow(clippy::too_many_arguments)]
     fn multiply(
         &mut self,
@@ -442,14 +467,39 @@ impl GridScratch {
             normal: &self.normal,
             filtered,
         };
-        chunks3(y, band_rows * cols)
-            .zip(self.dots.par_chunks_mut(band_rows * cols))
+        let per_band = band_rows * cols;
+        let n = self.dots.len();
+        // The tasks of `reduce` wholly within the particles `start..end`.
+        let within = |start: usize, end: usize| {
+            (start.div_ceil(PARTICLES_PER_TASK)..n.div_ceil(PARTICLES_PER_TASK))
+                .take_while(move |t| ((t + 1) * PARTICLES_PER_TASK).min(n) <= end)
+        };
+        chunks3(y, per_band)
+            .zip(self.dots.par_chunks_mut(per_band))
             .zip(self.ring.par_iter_mut())
+            .zip(self.band_sums.par_iter_mut())
             .enumerate()
-            .for_each(|(task, ((y, dots), ring))| {
-                simd::implicit_band(kernel, &job, task * band_rows, y, dots, ring);
+            .for_each(|(band, (((y, dots), ring), sums))| {
+                simd::implicit_band(kernel, &job, band * band_rows, y, dots, ring);
+                let start = band * per_band;
+                for (t, sum) in within(start, start + dots.len()).zip(sums.iter_mut()) {
+                    let a = t * PARTICLES_PER_TASK - start;
+                    *sum = task_sum(&dots[a..(a + PARTICLES_PER_TASK).min(dots.len())]);
+                }
             });
-        reduce(&self.dots, &mut self.partial)
+        for (t, partial) in self.partial.iter_mut().enumerate() {
+            let (a, b) = (
+                t * PARTICLES_PER_TASK,
+                ((t + 1) * PARTICLES_PER_TASK).min(n),
+            );
+            let band = a / per_band;
+            *partial = if (b - 1) / per_band == band {
+                self.band_sums[band][t - (band * per_band).div_ceil(PARTICLES_PER_TASK)]
+            } else {
+                task_sum(&self.dots[a..b])
+            };
+        }
+        self.partial.iter().sum()
     }
 }
 
@@ -482,17 +532,22 @@ fn run_terms(block: &[Vec<f32>; 6], p: &Soa, run: Range<usize>, off: usize, t: [
     // Whole lanes; a run that is not a multiple of L ends with one more whole lane that
     // overlaps the one before (each term depends only on its own spring, so the overlap
     // writes the same values again) instead of scalar leftovers.
-    let lanes = if len >= L { len.div_ceil(L) } else { 0 };
-    let scalar_from = if len >= L { len } else { 0 };
+    let lanes = if len >= T { len.div_ceil(T) } else { 0 };
+    let scalar_from = if len >= T { len } else { 0 };
     for l in 0..lanes {
-        let j = (l * L).min(len - L);
+        let j = (l * T).min(len - T);
         {
-            let (t0, t1, t2) = (lane_mut(t0, j), lane_mut(t1, j), lane_mut(t2, j));
-            let (a0, a1, a2) = (lane(a0, j), lane(a1, j), lane(a2, j));
-            let (u0, u1, u2) = (lane(u0, j), lane(u1, j), lane(u2, j));
-            let (xa, ya, za) = (lane(px_a, j), lane(py_a, j), lane(pz_a, j));
-            let (xb, yb, zb) = (lane(px_b, j), lane(py_b, j), lane(pz_b, j));
-            let (mut dx, mut dy, mut dz) = ([0.0; L], [0.0; L], [0.0; L]);
+            let (t0, t1, t2) = (
+                lanes_of_mut(t0, j),
+                lanes_of_mut(t1, j),
+                lanes_of_mut(t2, j),
+            );
+            // Copies of the operands (values, which the compiler keeps in registers).
+            let (a0, a1, a2) = (&copy(a0, j), &copy(a1, j), &copy(a2, j));
+            let (u0, u1, u2) = (&copy(u0, j), &copy(u1, j), &copy(u2, j));
+            let (xa, ya, za) = (&copy(px_a, j), &copy(py_a, j), &copy(pz_a, j));
+            let (xb, yb, zb) = (&copy(px_b, j), &copy(py_b, j), &copy(pz_b, j));
+            let (mut dx, mut dy, mut dz) = ([0.0; T], [0.0; T], [0.0; T]);
             sub(&mut dx, xa, xb);
             sub(&mut dy, ya, yb);
             sub(&mut dz, za, zb);
