@@ -38,12 +38,7 @@ pub(crate) fn accumulate_capped(
 ) {
     let (position, velocity, mass) = (&particles.position, &particles.velocity, &particles.mass);
     let sw = config.forces;
-    let gravity = if sw.gravity {
-        config.gravity
-    } else {
-        Vec3::ZERO
-    };
-    let damping = if sw.damping { config.damping } else { 0.0 };
+    let (gravity, damping) = body_forces(config);
     for ((f, &m), &v) in force.iter_mut().zip(mass).zip(velocity) {
         *f = m * gravity - capped_damping(damping, m, inv_h) * v;
     }
@@ -58,18 +53,11 @@ pub(crate) fn accumulate_capped(
             }
             for s in topology.springs_of(kind) {
                 let (a, b) = (s.a as usize, s.b as usize);
-                let l = position[b] - position[a];
-                let len = l.length();
-                if len <= 0.0 {
-                    continue;
+                let ends = [position[a], position[b], velocity[a], velocity[b]];
+                if let Some(f) = spring_force(ends, s.rest_length, k, c) {
+                    force[a] += f;
+                    force[b] -= f;
                 }
-                // One division, then products: the grid fast path uses the same operations,
-                // so both give the same bits.
-                let d = l * (1.0 / len);
-                let magnitude = k * (len - s.rest_length) + c * (velocity[b] - velocity[a]).dot(d);
-                let f = magnitude * d;
-                force[a] += f;
-                force[b] -= f;
             }
         }
     }
@@ -77,6 +65,36 @@ pub(crate) fn accumulate_capped(
     if sw.air {
         add_air(config, topology, position, velocity, wind, force);
     }
+}
+
+/// Gravity (m/s², zero when switched off) and the global damping coefficient (kg/s, zero
+/// when switched off) of [`accumulate`]'s first term, m·g − d·v.
+pub(crate) fn body_forces(config: &SimConfig) -> (Vec3, f32) {
+    let sw = config.forces;
+    let gravity = if sw.gravity {
+        config.gravity
+    } else {
+        Vec3::ZERO
+    };
+    (gravity, if sw.damping { config.damping } else { 0.0 })
+}
+
+/// The Hooke and dashpot force of a spring (rest length `rest`, stiffness `k`, damping `c`)
+/// on its first end, from its ends' positions and velocities `[x_a, x_b, v_a, v_b]`; its
+/// second end takes the opposite. `None` for a spring of zero length, which has no direction
+/// and adds nothing.
+#[inline]
+pub(crate) fn spring_force([xa, xb, va, vb]: [Vec3; 4], rest: f32, k: f32, c: f32) -> Option<Vec3> {
+    let l = xb - xa;
+    let len = l.length();
+    if len <= 0.0 {
+        return None;
+    }
+    // One division, then products: the grid fast path uses the same operations, so both give
+    // the same bits.
+    let d = l * (1.0 / len);
+    let magnitude = k * (len - rest) + c * (vb - va).dot(d);
+    Some(magnitude * d)
 }
 
 fn add_air(
@@ -91,20 +109,33 @@ fn add_air(
     if air.density == 0.0 || (air.drag_coefficient == 0.0 && air.lift_coefficient == 0.0) {
         return;
     }
-    for &[i, j, k] in topology.triangles() {
-        let (i, j, k) = (i as usize, j as usize, k as usize);
-        let f = triangle_air_force(
-            air.density,
-            air.drag_coefficient,
-            air.lift_coefficient,
-            [position[i], position[j], position[k]],
-            (velocity[i] + velocity[j] + velocity[k]) * THIRD,
-            wind,
-        ) * THIRD;
-        force[i] += f;
-        force[j] += f;
-        force[k] += f;
+    for &tri in topology.triangles() {
+        let f = air_share(config, position, velocity, wind, tri);
+        for i in tri {
+            force[i as usize] += f;
+        }
     }
+}
+
+/// The share of triangle `tri`'s air force ([`triangle_air_force`]) each of its corners takes.
+#[inline]
+pub(crate) fn air_share(
+    config: &SimConfig,
+    position: &[Vec3],
+    velocity: &[Vec3],
+    wind: Vec3,
+    tri: [u32; 3],
+) -> Vec3 {
+    let air = &config.air;
+    let [i, j, k] = tri.map(|i| i as usize);
+    triangle_air_force(
+        air.density,
+        air.drag_coefficient,
+        air.lift_coefficient,
+        [position[i], position[j], position[k]],
+        (velocity[i] + velocity[j] + velocity[k]) * THIRD,
+        wind,
+    ) * THIRD
 }
 
 /// One third, as the factor of the triangle's mean velocity and of each corner's share of its

@@ -25,7 +25,10 @@
 //! - a product A·p is two passes: each spring's S·(p_a − p_b) into a per-spring array, then
 //!   each particle's sum over its incident springs in spring order (a list built once per
 //!   cloth), which adds the same terms in the same order as a sequential scatter would;
-//! - the assembly of the right-hand side and of the preconditioner is split the same way;
+//! - the assembly of the right-hand side and of the preconditioner is split the same way, and
+//!   so are the forces ([`crate::forces::accumulate`]'s terms: each spring's force and each
+//!   triangle's air share, then each particle's sum in the sequential scatter's order, so the
+//!   same bits);
 //! - a dot product is accumulated in f64 within each task, and the tasks' partial sums are
 //!   added in task order.
 
@@ -37,8 +40,9 @@ pub(crate) mod grid;
 use super::SubstepCtx;
 use crate::collide::{Collider, resolve_contacts_in};
 use crate::config::SimConfig;
-use crate::forces::accumulate;
+use crate::forces::{air_share, body_forces, capped_damping, spring_force};
 use crate::particles::Particles;
+use crate::topology::Topology;
 use crate::topology::{Spring, SpringKind};
 
 /// Particles per task of the parallel passes over particles (a fixed partition).
@@ -166,6 +170,12 @@ pub(crate) struct ImplicitScratch {
     term: Vec<Vec3>,
     /// Incident springs of every particle, built once per cloth.
     incident: Incident,
+    /// Incident triangles of every particle, built once per cloth (for the air).
+    triangles: Incident,
+    /// Per spring: its force on its first end ([`spring_force`]).
+    spring_force: Vec<Option<Vec3>>,
+    /// Per triangle: the share of its air force each corner takes ([`air_share`]).
+    air: Vec<Vec3>,
     /// Inverse of each particle's diagonal block (the preconditioner).
     precond: Vec<Mat3>,
     filter: Vec<Filter>,
@@ -236,9 +246,10 @@ pub(super) fn task_sum(d: &[f32]) -> f64 {
     acc.iter().sum()
 }
 
-/// The springs incident to every particle, in spring order: those of particle i are
-/// `list[start[i]..start[i + 1]]`, each `spring << 1`, plus 1 when the particle is the
-/// spring's second end.
+/// The springs (or triangles) incident to every particle, in their order: those of particle
+/// i are `list[start[i]..start[i + 1]]`; a spring as `spring << 1`, plus 1 when the particle
+/// is its second end ([`Incident::springs`]), a triangle as its index
+/// ([`Incident::triangles`]).
 #[derive(Debug, Clone, Default)]
 struct Incident {
     start: Vec<u32>,
@@ -246,29 +257,52 @@ struct Incident {
 }
 
 impl Incident {
-    /// Builds the lists when the cloth changed (a counting sort by particle: every list comes
-    /// out in spring order).
-    fn build(&mut self, n: usize, springs: &[Spring]) {
-        if self.start.len() == n + 1 && self.list.len() == 2 * springs.len() {
+    /// The springs' lists, built when the cloth changed.
+    fn springs(&mut self, n: usize, springs: &[Spring]) {
+        self.build(
+            n,
+            springs.len(),
+            |j| [springs[j].a, springs[j].b],
+            |j, end| (j as u32) << 1 | end as u32,
+        );
+    }
+
+    /// The triangles' lists, built when the cloth changed (a triangle is listed once per
+    /// corner).
+    fn triangles(&mut self, n: usize, triangles: &[[u32; 3]]) {
+        self.build(n, triangles.len(), |j| triangles[j], |j, _| j as u32);
+    }
+
+    /// Builds the lists of `count` items whose particles are `item(j)`, each listed as
+    /// `code(j, corner)`, when the cloth changed: a counting sort by particle, so every list
+    /// comes out in the items' order (an item's corners in their order).
+    fn build<const K: usize>(
+        &mut self,
+        n: usize,
+        count: usize,
+        item: impl Fn(usize) -> [u32; K],
+        code: impl Fn(usize, usize) -> u32,
+    ) {
+        if self.start.len() == n + 1 && self.list.len() == K * count {
             return;
         }
         self.start.clear();
         self.start.resize(n + 1, 0);
-        for s in springs {
-            self.start[s.a as usize + 1] += 1;
-            self.start[s.b as usize + 1] += 1;
+        for j in 0..count {
+            for i in item(j) {
+                self.start[i as usize + 1] += 1;
+            }
         }
         for i in 0..n {
             self.start[i + 1] += self.start[i];
         }
         self.list.clear();
-        self.list.resize(2 * springs.len(), 0);
+        self.list.resize(K * count, 0);
         let mut next: Vec<u32> = self.start[..n].to_vec();
-        for (j, s) in springs.iter().enumerate() {
-            let j = j as u32;
-            for (end, flag) in [(s.a, 0), (s.b, 1)] {
-                let slot = &mut next[end as usize];
-                self.list[*slot as usize] = j << 1 | flag;
+        for j in 0..count {
+            for (corner, i) in item(j).into_iter().enumerate() {
+                let slot = &mut next[i as usize];
+                self.list[*slot as usize] = code(j, corner);
                 *slot += 1;
             }
         }
@@ -282,6 +316,83 @@ impl Incident {
 }
 
 impl ImplicitScratch {
+    /// The forces of [`crate::forces::accumulate`], with the same bits, in parallel passes: each
+    /// spring's force and each triangle's air share first, then each particle's sum of its
+    /// gravity and damping, its springs' forces in spring order and its triangles' shares in
+    /// triangle order (the incidence lists): the terms and the order of the sequential
+    /// scatter.
+    fn forces(&mut self, ctx: &SubstepCtx<'_>, force: &mut [Vec3]) {
+        let (cfg, topology, p) = (ctx.config, ctx.topology, &*ctx.particles);
+        let n = p.len();
+        let springs = topology.springs();
+        self.incident.springs(n, springs);
+        let air = super::grid_kernel::air_active(cfg);
+        if air {
+            self.triangles.triangles(n, topology.triangles());
+        }
+        let (x, v) = (&p.position, &p.velocity);
+        let kinds = KindParams::of(cfg, topology);
+        self.spring_force.resize(springs.len(), None);
+        self.spring_force
+            .par_chunks_mut(SPRINGS_PER_TASK)
+            .zip(springs.par_chunks(SPRINGS_PER_TASK))
+            .enumerate()
+            .for_each(|(task, (out, chunk))| {
+                let base = task * SPRINGS_PER_TASK;
+                for (j, (out, s)) in out.iter_mut().zip(chunk).enumerate() {
+                    let (k, c) = kinds.get(base + j);
+                    let (a, b) = (s.a as usize, s.b as usize);
+                    *out = if k == 0.0 && c == 0.0 {
+                        None
+                    } else {
+                        spring_force([x[a], x[b], v[a], v[b]], s.rest_length, k, c)
+                    };
+                }
+            });
+        let triangles = topology.triangles();
+        let wind = ctx.wind;
+        if air {
+            resize(&mut self.air, triangles.len());
+            self.air
+                .par_chunks_mut(SPRINGS_PER_TASK)
+                .zip(triangles.par_chunks(SPRINGS_PER_TASK))
+                .for_each(|(out, chunk)| {
+                    for (out, &tri) in out.iter_mut().zip(chunk) {
+                        *out = air_share(cfg, x, v, wind, tri);
+                    }
+                });
+        }
+        let (gravity, damping) = body_forces(cfg);
+        let (incident, tris) = (&self.incident, &self.triangles);
+        let (spring_force, shares) = (&self.spring_force, &self.air);
+        force
+            .par_chunks_mut(PARTICLES_PER_TASK)
+            .enumerate()
+            .for_each(|(task, out)| {
+                let base = task * PARTICLES_PER_TASK;
+                for (k, out) in out.iter_mut().enumerate() {
+                    let i = base + k;
+                    let m = p.mass[i];
+                    let mut f = m * gravity - capped_damping(damping, m, f32::INFINITY) * v[i];
+                    for &e in incident.of(i) {
+                        if let Some(t) = spring_force[(e >> 1) as usize] {
+                            if e & 1 == 0 {
+                                f += t;
+                            } else {
+                                f -= t;
+                            }
+                        }
+                    }
+                    if air {
+                        for &t in tris.of(i) {
+                            f += shares[t as usize];
+                        }
+                    }
+                    *out = f;
+                }
+            });
+    }
+
     /// `term[s] = S_s·(p_a − p_b)` for every spring.
     fn spring_products(&mut self, springs: &[Spring], p: &[Vec3]) {
         self.term
@@ -333,6 +444,30 @@ fn spring_params(cfg: &SimConfig, kind: SpringKind) -> (f32, f32) {
     let k = if cfg.forces.springs { p.stiffness } else { 0.0 };
     let c = if cfg.forces.dashpots { p.damping } else { 0.0 };
     (k, c)
+}
+
+/// The stiffness and damping coefficient of every spring of a topology's list, kind by kind
+/// ([`spring_params`]): each kind's end in the list and its coefficients.
+struct KindParams([(usize, f32, f32); 4]);
+
+impl KindParams {
+    fn of(cfg: &SimConfig, topology: &Topology) -> Self {
+        let mut kinds = [(0usize, 0.0f32, 0.0f32); 4];
+        let mut end = 0;
+        for (slot, kind) in kinds.iter_mut().zip(SpringKind::ALL) {
+            end += topology.springs_of(kind).len();
+            let (k, c) = spring_params(cfg, kind);
+            *slot = (end, k, c);
+        }
+        Self(kinds)
+    }
+
+    /// The coefficients of spring `j` of the list.
+    #[inline]
+    fn get(&self, j: usize) -> (f32, f32) {
+        let (_, k, c) = self.0[self.0.iter().position(|e| j < e.0).unwrap_or(3)];
+        (k, c)
+    }
 }
 
 /// One spring's block S = h·c·d·dᵀ + h²·K and its term h²·K·(v_b − v_a) of the right-hand
@@ -445,14 +580,13 @@ pub(super) fn substep(
     let h = ctx.h;
     let cfg = ctx.config;
     let settings = cfg.implicit;
-    accumulate(cfg, ctx.topology, ctx.particles, ctx.wind, force);
+    sc.forces(ctx, force);
     if crate::simd::kernel() != crate::simd::Kernel::Reference && grid::applies(ctx.topology) {
         grid::substep(ctx, force, &mut sc.grid, cg);
         return;
     }
 
     let springs = ctx.topology.springs();
-    sc.incident.build(n, springs);
     let tasks = n.div_ceil(PARTICLES_PER_TASK);
     // Sized, not cleared (see `resize`).
     sc.partial.resize(tasks, 0.0);
@@ -478,13 +612,7 @@ pub(super) fn substep(
     } else {
         0.0
     };
-    let mut kinds = [(0usize, 0.0f32, 0.0f32); 4];
-    let mut end = 0;
-    for (slot, kind) in kinds.iter_mut().zip(SpringKind::ALL) {
-        end += ctx.topology.springs_of(kind).len();
-        let (k, c) = spring_params(cfg, kind);
-        *slot = (end, k, c);
-    }
+    let kinds = KindParams::of(cfg, ctx.topology);
     {
         let (x, v) = (&ctx.particles.position, &ctx.particles.velocity);
         sc.block
@@ -495,7 +623,7 @@ pub(super) fn substep(
             .for_each(|(task, ((block, term), chunk))| {
                 let base = task * SPRINGS_PER_TASK;
                 for (j, ((block, term), s)) in block.iter_mut().zip(term).zip(chunk).enumerate() {
-                    let (_, k, c) = kinds[kinds.iter().position(|e| base + j < e.0).unwrap_or(3)];
+                    let (k, c) = kinds.get(base + j);
                     let (a, b) = (s.a as usize, s.b as usize);
                     (*block, *term) = assemble(x[a], x[b], v[a], v[b], s.rest_length, k, c, h);
                 }
@@ -666,4 +794,67 @@ pub(super) fn substep(
         .map(|f| f.iter().filter(|f| matches!(f, Filter::Normal(..))).count() as u32)
         .sum();
     ctx.contacts.contacts = contacts + constrained;
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::{ImplicitScratch, SubstepCtx};
+    use crate::GridBuilder;
+    use crate::collide::ContactStats;
+    use crate::config::{SimConfig, SpringParams};
+    use crate::forces::accumulate;
+
+    /// The implicit solver's parallel forces are [`accumulate`]'s, bit for bit (both sum the
+    /// same terms per particle in the same order: gravity and damping, springs in spring
+    /// order, triangles' air shares in triangle order), on 1, 2 and 3 threads, with wind, a
+    /// pinned particle, a spring of zero length (no direction: it must add nothing, not NaN)
+    /// and a kind switched off.
+    #[test]
+    fn parallel_forces_are_accumulate_bit_for_bit() {
+        let mut cloth = GridBuilder::new(7, 9).build().expect("a grid");
+        let p = &mut cloth.particles;
+        for i in 0..p.len() {
+            let t = i as f32;
+            p.position[i] += Vec3::new(0.01 * (t * 1.3).sin(), 0.02 * (t * 0.7).cos(), 0.0);
+            p.velocity[i] = Vec3::new((t * 0.9).cos(), 0.3 * (t * 1.1).sin(), -0.2 * t.sin());
+        }
+        // Particles 10 and 11 share a weft spring, now of zero length.
+        p.position[11] = p.position[10];
+        p.inv_mass[0] = 0.0;
+        let mut config = SimConfig {
+            damping: 0.01,
+            ..SimConfig::default()
+        };
+        config.material.bend = SpringParams::new(0.0, 0.0);
+        let wind = Vec3::new(3.0, 0.5, -1.0);
+        let mut expected = vec![Vec3::ZERO; p.len()];
+        accumulate(&config, &cloth.topology, p, wind, &mut expected);
+        let bits = |f: &[Vec3]| -> Vec<[u32; 3]> {
+            f.iter().map(|v| v.to_array().map(f32::to_bits)).collect()
+        };
+        for threads in 1..=3 {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("a pool");
+            let mut force = vec![Vec3::ZERO; p.len()];
+            let mut contacts = ContactStats::default();
+            let mut particles = p.clone();
+            let ctx = SubstepCtx {
+                particles: &mut particles,
+                topology: &cloth.topology,
+                config: &config,
+                colliders: &[],
+                wind,
+                h: 1e-3,
+                contacts: &mut contacts,
+                rest: &[],
+                pinned: true,
+            };
+            pool.install(|| ImplicitScratch::default().forces(&ctx, &mut force));
+            assert_eq!(bits(&force), bits(&expected), "{threads} threads");
+        }
+    }
 }
