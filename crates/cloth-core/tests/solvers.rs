@@ -380,19 +380,8 @@ fn implicit_grid_path_gives_the_reference_bits() {
     .expect("box");
     big.pin(0).expect("pin");
     scenes.push(("drape 40 x 24", big, 45));
-    // 90 rows of 100: the product's bands of 40 rows (4000 particles) end inside tasks of the
-    // dot products' sums (1024 particles), which are then summed after the bands.
-    let wide = GridBuilder::new(90, 100)
-        .size(1.0, 0.9)
-        .origin(Vec3::new(0.0, 0.35, 0.0))
-        .build()
-        .expect("cloth");
-    let mut wide = Simulation::new(wide, config).expect("sim");
-    for c in sim.colliders() {
-        wide.add_collider(c.clone()).expect("collider");
-    }
-    scenes.push(("wide 90 x 100", wide, 8));
-    for (rows, cols) in [(2, 2), (2, 5), (5, 2), (3, 3), (13, 3)] {
+    // A rows × cols cloth 0.1 m apart over the drape's ball and ground.
+    let on_ball = |rows: usize, cols: usize| {
         let cloth = GridBuilder::new(rows, cols)
             .size(0.1 * cols as f32, 0.1 * rows as f32)
             .origin(Vec3::new(0.0, 0.35, 0.0))
@@ -402,7 +391,13 @@ fn implicit_grid_path_gives_the_reference_bits() {
         for c in sim.colliders() {
             small.add_collider(c.clone()).expect("collider");
         }
-        scenes.push(("small", small, 20));
+        small
+    };
+    // 90 rows of 100: the product's bands of 40 rows (4000 particles) end inside tasks of the
+    // dot products' sums (1024 particles), which are then summed after the bands.
+    scenes.push(("wide 90 x 100", on_ball(90, 100), 8));
+    for (rows, cols) in [(2, 2), (2, 5), (5, 2), (3, 3), (13, 3)] {
+        scenes.push(("small", on_ball(rows, cols), 20));
     }
     for (name, sim, steps) in &scenes {
         let reference = implicit_trace(sim, *steps, Some(Kernel::Reference), 1);
