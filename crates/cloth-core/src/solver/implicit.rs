@@ -42,8 +42,7 @@ use crate::collide::{Collider, resolve_contacts_in};
 use crate::config::SimConfig;
 use crate::forces::{air_share, body_forces, capped_damping, spring_force};
 use crate::particles::Particles;
-use crate::topology::Topology;
-use crate::topology::{Spring, SpringKind};
+use crate::topology::{Spring, SpringKind, Topology};
 
 /// Particles per task of the parallel passes over particles (a fixed partition).
 const PARTICLES_PER_TASK: usize = 1024;
