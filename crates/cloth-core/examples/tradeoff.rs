@@ -93,7 +93,8 @@ fn main() {
                 .copied()
                 .find(|&s| run(n, setup, s, 60).stable);
             let stable_txt = stable.map_or("none tried".to_string(), |s| {
-                format!("1/{} s ({s} substeps)", 60 * s)
+                let plural = if s == 1 { "" } else { "s" };
+                format!("1/{} s ({s} substep{plural})", 60 * s)
             });
             let start = stable.unwrap_or(1);
             let good = CANDIDATES

@@ -521,6 +521,32 @@ fn strain_limiting_caps_the_stretch() {
     assert!(limited <= 0.12, "limited strain {limited}");
 }
 
+/// The velocities after one step (10 substeps of 1 ms) of XPBD on `cloth` with `kernel`,
+/// global damping `d` kg/s and no other force (no gravity, springs, dashpots or air).
+fn xpbd_damped_step(
+    cloth: cloth_core::Cloth,
+    d: f32,
+    kernel: cloth_core::simd::Kernel,
+) -> Vec<Vec3> {
+    use cloth_core::simd;
+    simd::set_kernel(Some(kernel)).expect("kernel");
+    let mut config = SimConfig {
+        integrator: Integrator::Xpbd,
+        substeps: 10,
+        dt: 0.01,
+        damping: d,
+        ..SimConfig::default()
+    };
+    config.forces.gravity = false;
+    config.forces.springs = false;
+    config.forces.dashpots = false;
+    config.forces.air = false;
+    let mut sim = Simulation::new(cloth, config).expect("sim");
+    sim.step().expect("stable");
+    simd::set_kernel(None).expect("default");
+    sim.particles().velocity.clone()
+}
+
 /// XPBD's global damping F = −d·v is explicit in its prediction, v ← v·(1 − h·d/m) per
 /// substep without other forces (the law checked here to 1e-4 relative, on the grid path and
 /// on the reference path, at h·d/m = 0.1: XPBD's velocities are (x − x_prev)/h, and f32
@@ -529,32 +555,17 @@ fn strain_limiting_caps_the_stretch() {
 /// substep) the cloth stops within the first substep and stays finite and still.
 #[test]
 fn xpbd_damping_decays_as_its_law_and_never_reverses_a_velocity() {
-    use cloth_core::simd::{self, Kernel};
+    use cloth_core::simd::Kernel;
     // Fast enough that a substep's move (1–4 cm) is many f32 steps of the positions (< 1 m).
     let v0 = Vec3::new(40.0, 20.0, -10.0);
     let run = |d: f32, kernel: Kernel| {
-        simd::set_kernel(Some(kernel)).expect("kernel");
         let cloth = GridBuilder::new(6, 6)
             .size(0.5, 0.5)
             .mass(Mass::PerParticle(1e-2))
             .velocity(v0)
             .build()
             .expect("cloth");
-        let mut config = SimConfig {
-            integrator: Integrator::Xpbd,
-            substeps: 10,
-            dt: 0.01,
-            damping: d,
-            ..SimConfig::default()
-        };
-        config.forces.gravity = false;
-        config.forces.springs = false;
-        config.forces.dashpots = false;
-        config.forces.air = false;
-        let mut sim = Simulation::new(cloth, config).expect("sim");
-        sim.step().expect("stable");
-        simd::set_kernel(None).expect("default");
-        sim.particles().velocity.clone()
+        xpbd_damped_step(cloth, d, kernel)
     };
     let (m, h) = (1e-2_f64, 1e-3_f64);
     // h·d/m = 0.1: d = 1 kg/s.
@@ -573,5 +584,45 @@ fn xpbd_damping_decays_as_its_law_and_never_reverses_a_velocity() {
             assert!(v.is_finite(), "{kernel:?}: {v}");
             assert!(v.length() < 1e-6, "{kernel:?}: not stopped: {v}");
         }
+    }
+}
+
+/// The damping's cap m/h per particle, on a cloth of two masses: with d = 20 kg/s and
+/// h = 1 ms, the heavy particles (1 kg, h·d/m = 0.02) decay as v·(1 − h·d/m) per substep
+/// (checked to 1e-4 relative, as above) while the light one (10⁻³ kg, h·d/m = 20, past the
+/// cap) stops within the first substep instead of reversing: the cap is each particle's, on
+/// the grid path and on the reference path.
+#[test]
+fn xpbd_damping_cap_is_per_particle_on_a_cloth_of_two_masses() {
+    use cloth_core::simd::Kernel;
+    let v0 = Vec3::new(40.0, 20.0, -10.0);
+    let (heavy, light, d, h) = (1.0_f32, 1e-3_f32, 20.0_f32, 1e-3_f32);
+    for kernel in [Kernel::Reference, Kernel::Portable] {
+        let mut cloth = GridBuilder::new(6, 6)
+            .size(0.5, 0.5)
+            .mass(Mass::PerParticle(heavy))
+            .velocity(v0)
+            .build()
+            .expect("cloth");
+        let last = cloth.particles.len() - 1;
+        cloth.particles.mass[last] = light;
+        cloth.particles.inv_mass[last] = 1.0 / light;
+        let velocity = xpbd_damped_step(cloth, d, kernel);
+        let want = (1.0 - f64::from(h * d / heavy)).powi(10);
+        for v in &velocity[..last] {
+            for (got, start) in v.to_array().into_iter().zip(v0.to_array()) {
+                let ratio = f64::from(got) / f64::from(start);
+                assert!(
+                    (ratio / want - 1.0).abs() < 1e-4,
+                    "{kernel:?}: heavy v/v0 = {ratio}, the law gives {want}"
+                );
+            }
+        }
+        let v = velocity[last];
+        assert!(v.is_finite(), "{kernel:?}: {v}");
+        assert!(
+            v.length() < 1e-6,
+            "{kernel:?}: light particle not stopped: {v}"
+        );
     }
 }
