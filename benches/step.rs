@@ -152,22 +152,13 @@ fn xpbd_drape(c: &mut Criterion) {
     bench_on(c, "drape-256/xpbd/chains-newton3-10/2t", &sim, 2, None);
 }
 
-/// The real-time drape of issue 7's target 2, as `scripts/realtime-series.sh` runs it: XPBD
-/// with chain solves (2 rounds of 2 Newton iterations per substep) and the 2 % structural
-/// strain limit, the scene's global damping scaled by (48/n)², warmed for 1 s so that the
-/// cloth lies on the ball. 256² at 5 substeps (the setting that meets the strain figures
+/// The real-time drape of issue 7's target 2 ([`presets::realtime_drape`]: XPBD with chain
+/// solves, 2 rounds of 2 Newton iterations per substep, and the 2 % structural strain
+/// limit), warmed for 1 s so that the cloth lies on the ball. 256² at 5 substeps (the setting that meets the strain figures
 /// there) on 1 and 2 threads, 512² at 10 (the fewest that meet them there) on 2.
 fn realtime_drape(c: &mut Criterion) {
     for (n, substeps, threads) in [(256, 5, &[1, 2][..]), (512, 10, &[2][..])] {
-        let mut sim = presets::drape(n, Integrator::Xpbd).expect("drape scene");
-        let mut config = *sim.config();
-        config.substeps = substeps;
-        config.damping = 2e-4 * (48.0 / n as f32).powi(2);
-        config.xpbd.chains = true;
-        config.xpbd.chain_iterations = 2;
-        config.xpbd.chain_rounds = 2;
-        config.xpbd.structural_limit = Some(0.02);
-        sim.set_config(config).expect("config");
+        let sim = presets::realtime_drape(n, substeps).expect("drape scene");
         let sim = warmed(sim, 60);
         for &t in threads {
             let name = format!("drape-{n}/xpbd/realtime-{substeps}x2x2/{t}t");

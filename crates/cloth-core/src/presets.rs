@@ -1,5 +1,6 @@
-//! Ready-made scenes, built in code: the seed's drape, a hanging curtain, and the peer
-//! benchmark's cloth on a ball. Each returns a [`Simulation`] ready to step.
+//! Ready-made scenes, built in code: the seed's drape (and its real-time XPBD setting), a
+//! hanging curtain, and the peer benchmark's cloth on a ball. Each returns a [`Simulation`]
+//! ready to step.
 
 use glam::Vec3;
 
@@ -59,6 +60,33 @@ fn builtin_at(name: &str, n: usize, integrator: Integrator) -> Result<Simulation
 #[cfg(feature = "scene")]
 pub fn drape(n: usize, integrator: Integrator) -> Result<Simulation> {
     builtin_at("drape", n, integrator)
+}
+
+/// The drape of issue 7's real-time target at `n × n` particles, as
+/// `scripts/realtime-series.sh` and the criterion benches run it: XPBD with `substeps`
+/// substeps, each with two rounds of chain solves of two Newton iterations
+/// (`xpbd.chains`, `xpbd.chain_rounds`, `xpbd.chain_iterations`) and the 2 % structural
+/// strain limit (`xpbd.structural_limit`); the scene's global damping, set for its native 48²,
+/// scaled by (48/n)² so that the cloth's total damping, and so its fall, is the same at every
+/// resolution. 5 substeps meet the strain figures at 256², 10 at 512².
+///
+/// # Errors
+/// As [`drape`], and [`ClothError::InvalidArgument`] for `substeps` outside
+/// `1 ..= MAX_SUBSTEPS`.
+#[cfg(feature = "scene")]
+pub fn realtime_drape(n: usize, substeps: u32) -> Result<Simulation> {
+    let native = crate::scene::builtin("drape").expect("built-in scene");
+    let side = native.cloth.resolution[0] as f32;
+    let mut sim = drape(n, Integrator::Xpbd)?;
+    let mut config = *sim.config();
+    config.substeps = substeps;
+    config.damping *= (side / n as f32).powi(2);
+    config.xpbd.chains = true;
+    config.xpbd.chain_iterations = 2;
+    config.xpbd.chain_rounds = 2;
+    config.xpbd.structural_limit = Some(0.02);
+    sim.set_config(config)?;
+    Ok(sim)
 }
 
 /// A curtain (`scenes/hanging.toml`) at `n × n` particles: 1 m square, 0.2 kg/m², pinned along

@@ -405,15 +405,7 @@ fn grid_path_drapes_without_penetration() {
 /// Tolerances: the figures (p99.9 < 5 %, max < 10 %, penetration < 8 mm).
 #[test]
 fn real_time_drape_setting_meets_the_strain_figures_at_256() {
-    let mut sim = presets::drape(256, Integrator::Xpbd).expect("drape");
-    let mut config = *sim.config();
-    config.substeps = 5;
-    config.damping = 2e-4 * (48.0_f32 / 256.0).powi(2);
-    config.xpbd.chains = true;
-    config.xpbd.chain_iterations = 2;
-    config.xpbd.chain_rounds = 2;
-    config.xpbd.structural_limit = Some(0.02);
-    sim.set_config(config).expect("config");
+    let mut sim = presets::realtime_drape(256, 5).expect("drape");
     let frames = 180;
     let (mut late_max, mut deepest) = (0.0_f32, 0.0_f32);
     for frame in 0..frames {
