@@ -276,7 +276,10 @@ impl Integrator {
 /// Settings of the implicit Euler solver's conjugate gradient.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ImplicitSettings {
-    /// Relative residual (preconditioned norm) at which CG stops, in (0, 1). Default 1e-3.
+    /// Relative residual (preconditioned norm) at which CG stops, in (0, 1): relative to the
+    /// larger of the right-hand side and one substep's gravity impulse on the cloth (so that a
+    /// cloth at rest, whose right-hand side is almost zero, is not solved to a finer absolute
+    /// accuracy than a falling one). Default 1e-3.
     pub tolerance: f32,
     /// Iteration cap per substep, `>= 1`. Default 200. A solve that hits it is reported in
     /// [`StepStats::solver`](crate::StepStats::solver) as not converged.

@@ -311,7 +311,12 @@ fn measured_acceleration(sim: &mut Simulation) -> (f32, f32) {
 /// projection, ~1e-8 m per substep, over 1920 substeps), for symplectic Euler and Verlet.
 #[test]
 fn incline_static_friction_holds() {
-    for integrator in [Integrator::SymplecticEuler, Integrator::Verlet] {
+    for integrator in [
+        Integrator::SymplecticEuler,
+        Integrator::Verlet,
+        Integrator::ImplicitEuler,
+        Integrator::Xpbd,
+    ] {
         let mut sim = incline(integrator, Friction::new(0.8, 0.6));
         let start = sim.particles().center_of_mass();
         for _ in 0..60 {
@@ -334,7 +339,12 @@ fn incline_kinetic_friction_acceleration() {
     let (mu_s, mu_k) = (0.4_f32, 0.3_f32);
     assert!(mu_s < THETA.tan());
     let expected = G * (THETA.sin() - mu_k * THETA.cos());
-    for integrator in [Integrator::SymplecticEuler, Integrator::Verlet] {
+    for integrator in [
+        Integrator::SymplecticEuler,
+        Integrator::Verlet,
+        Integrator::ImplicitEuler,
+        Integrator::Xpbd,
+    ] {
         let mut sim = incline(integrator, Friction::new(mu_s, mu_k));
         let (a_s, a_v) = measured_acceleration(&mut sim);
         eprintln!(
@@ -356,7 +366,12 @@ fn incline_kinetic_friction_acceleration() {
 #[test]
 fn incline_frictionless_acceleration() {
     let expected = G * THETA.sin();
-    for integrator in [Integrator::SymplecticEuler, Integrator::Verlet] {
+    for integrator in [
+        Integrator::SymplecticEuler,
+        Integrator::Verlet,
+        Integrator::ImplicitEuler,
+        Integrator::Xpbd,
+    ] {
         let mut sim = incline(integrator, Friction::NONE);
         let (a_s, a_v) = measured_acceleration(&mut sim);
         eprintln!(

@@ -7,7 +7,7 @@
 use cloth_core::collide::intersect::SelfContactCheck;
 use cloth_core::glam::Vec3;
 use cloth_core::scene::{Scene, builtin};
-use cloth_core::{ClothError, GridBuilder, Integrator, TriMesh};
+use cloth_core::{ClothError, GridBuilder, Integrator, SpringClass, SpringKind, TriMesh};
 
 /// The counter on hand-made configurations: a flat sheet has no intersecting pairs; the same
 /// sheet folded in half with the upper half tilted through the lower one has some; folded with
@@ -193,8 +193,15 @@ fn bad_meshes_are_reported() {
 
 /// Contact jitter. On the ground: a cloth dropped flat from 0.85 m onto a plane comes to rest (the
 /// contact removes the normal velocity and static friction the tangential one): kinetic energy
-/// at most 1e-9 J (rms speed 8e-5 m/s) from 2 s to 3 s, for every integrator but forward Euler (which gains energy every
-/// step and is not meant for resting cloth). On a ball (the drape scene, 0.288 kg): the
+/// at most 1e-9 J (rms speed 8e-5 m/s) over a second, from 2 s to 3 s for every integrator but
+/// forward Euler (which gains energy every step and is not meant for resting cloth) and
+/// implicit Euler, from 3 s to 4 s for implicit Euler: at its one 1/60 s substep the landing
+/// stretches the cloth (80 % for a step), and the stretch slides out under kinetic friction
+/// until about 3 s (2.9e-8 J at most from 2 s to 3 s, 2.8e-10 J at most from 3 s to 4 s). At rest the cloth
+/// keeps no more than 1 % structural strain (symplectic Euler's ends at 0.03 %, XPBD's at
+/// 0.19 %, implicit Euler's at 0.22 %; implicit Euler's friction applied after the solve, before it moved into
+/// the solve, froze the landing's stretch at 9.6 % and passed the energy bound from 1 s on).
+/// On a ball (the drape scene, 0.288 kg): the
 /// kinetic energy at 6 s (32×32 cloth) is below 2e-6 J (rms speed < 3.7 mm/s) and below a
 /// thousandth of its value at 1 s, for symplectic Euler, position Verlet, implicit Euler (one
 /// 1/60 s substep) and XPBD (whose grid path, coloured Gauss–Seidel, slides to rest more
@@ -209,15 +216,32 @@ fn resting_contact_does_not_buzz() {
         scene.colliders.remove(0); // no ball: the cloth falls 0.85 m onto the ground
         scene.solver.kind = integrator.name().into();
         let mut sim = scene.build().expect("build");
-        for _ in 0..120 {
+        let start = if integrator == Integrator::ImplicitEuler {
+            180
+        } else {
+            120
+        };
+        for _ in 0..start {
             sim.step().expect("step");
         }
         let mut worst = 0.0f64;
+        let mut strain = 0.0;
         for _ in 0..60 {
-            worst = worst.max(sim.step().expect("step").kinetic_energy);
+            let stats = sim.step().expect("step");
+            worst = worst.max(stats.kinetic_energy);
+            strain = stats.strain(SpringClass::Structural);
         }
-        eprintln!("{integrator:?} on the ground: at most {worst:.3e} J from 2 s to 3 s");
+        eprintln!(
+            "{integrator:?} on the ground: at most {worst:.3e} J over the second from {} s, \
+             structural strain {:.3} % at its end",
+            start / 60,
+            100.0 * strain
+        );
         assert!(worst <= 1e-9, "{integrator:?} on the ground: {worst} J");
+        assert!(
+            strain <= 0.01,
+            "{integrator:?} on the ground: strain {strain}"
+        );
     }
     for integrator in [
         Integrator::SymplecticEuler,
@@ -242,6 +266,79 @@ fn resting_contact_does_not_buzz() {
             last < 2e-6 && last < 1e-3 * at_1s,
             "{integrator:?} on the ball: {at_1s} J at 1 s, {last} J at 6 s"
         );
+    }
+}
+
+/// Coulomb's static law at rest: a cloth that has come to rest on the ground holds no more
+/// in-plane tension than friction can hold. Every particle touching the ground is held by
+/// static friction, so the net tangential force of its springs (Hooke's F = k(|L| − L0)·L/|L|,
+/// computed here from the topology, independently of the solver) is at most μ_s times its
+/// normal force N = m·g − F·n. The cloth (48², the drape scene without its ball) falls 0.85 m
+/// flat onto the ground and is checked at 4 s, once its kinetic energy is below 1e-9 J.
+/// Tolerance: 1 % over μ_s·N (symplectic Euler and Verlet end at 0.995 and 0.997 of it: the
+/// friction saturates where the landing's stretch was let out).
+///
+/// For the explicit integrators only. Measured, not asserted (the cloth at rest, 4 s):
+/// - implicit Euler at the scene's one substep per frame ends with folds (2,074 particles on
+///   the ground), up to 1.93 × μ_s·N on the pressed particles, and 13 particles held on the
+///   ground while their springs pull them off (up to 4.6 × m·g): its contact constrains a
+///   resting particle's normal velocity and releases it only when the particle leaves, and a
+///   release decided from the particle's own row of the system (tried) made the drape on the
+///   ball hop and stretch (26 %); at 2 substeps 1.22 ×, at 8 substeps 1.03 ×. Before its
+///   friction moved into the solve it froze the landing's stretch (9.6 %; see
+///   `resting_contact_does_not_buzz`);
+/// - XPBD ends at 25 × (its springs' force is −λ/h², Hooke's only when its iterations
+///   converge).
+#[test]
+fn cloth_at_rest_on_the_ground_is_within_the_friction_cone() {
+    for integrator in [Integrator::SymplecticEuler, Integrator::Verlet] {
+        let mut scene = builtin("drape").expect("drape");
+        scene.colliders.remove(0); // no ball: the cloth falls 0.85 m onto the ground
+        scene.solver.kind = integrator.name().into();
+        let mut sim = scene.build().expect("build");
+        let mut kinetic = 0.0;
+        for _ in 0..240 {
+            kinetic = sim.step().expect("step").kinetic_energy;
+        }
+        assert!(kinetic <= 1e-9, "{integrator:?}: not at rest, {kinetic} J");
+        let ground = &sim.colliders()[0];
+        let mu_s = ground.friction.static_coefficient;
+        let normal = Vec3::Y;
+        let (p, topology, config) = (sim.particles(), sim.topology(), sim.config());
+        let mut force = vec![Vec3::ZERO; p.len()];
+        for kind in SpringKind::ALL {
+            let k = config.material.params(kind).stiffness;
+            for s in topology.springs_of(kind) {
+                let (a, b) = (s.a as usize, s.b as usize);
+                let l = p.position[b] - p.position[a];
+                let f = k * (l.length() - s.rest_length) * l.normalize();
+                force[a] += f;
+                force[b] -= f;
+            }
+        }
+        let g = config.gravity.length();
+        let ground_y = -0.3; // the drape scene's ground
+        let mut worst = 0.0f32;
+        let mut touching = 0;
+        for (i, f) in force.iter().enumerate() {
+            if p.position[i].y - ground_y > ground.thickness + 1e-4 {
+                continue;
+            }
+            touching += 1;
+            let tangential = (*f - f.dot(normal) * normal).length();
+            let pressing = p.mass[i] * g - f.dot(normal);
+            assert!(
+                pressing > 0.0,
+                "{integrator:?}: particle {i} pulled off, {pressing} N"
+            );
+            worst = worst.max(tangential / (mu_s * pressing));
+        }
+        eprintln!(
+            "{integrator:?}: {touching} particles on the ground, largest tangential spring force \
+             {worst:.3} × μ_s·N"
+        );
+        assert_eq!(touching, p.len(), "{integrator:?}: the cloth lies flat");
+        assert!(worst <= 1.01, "{integrator:?}: {worst} × μ_s·N");
     }
 }
 

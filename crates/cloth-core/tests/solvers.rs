@@ -626,3 +626,40 @@ fn xpbd_damping_cap_is_per_particle_on_a_cloth_of_two_masses() {
         );
     }
 }
+
+/// Coulomb friction inside implicit Euler's solve. A contact that static friction holds is
+/// fixed at the collider's velocity in the solve itself (kinetic friction enters the
+/// right-hand side), so the solve moves the cloth around particles that do not slide. The
+/// 32² drape (the scene's cloth and ball, μ_s = 0.6, μ_k = 0.5) at 2 substeps per 1/60 s
+/// drapes on the ball and holds there: over the second half of a 3 s run the largest
+/// structural strain stays under 5 % (the issue's bound on the settled drape's 99.9th
+/// percentile; measured 2.45 %), every solve converges, and the cloth still rests on the ball
+/// at the end (its contacts, and its centre of mass above the ball's centre, within 5 cm of
+/// its axis). With the friction applied after the solve as a velocity filter (Bridson et al.
+/// 2002), as before, the solve moved a stuck particle's neighbours as if it slid and the same
+/// run stretched to 33 % (151 % for the 128² drape).
+#[test]
+fn implicit_euler_friction_holds_the_drape_without_stretching() {
+    let mut sim = presets::drape(32, Integrator::ImplicitEuler).expect("drape");
+    let mut config = *sim.config();
+    config.substeps = 2;
+    sim.set_config(config).expect("config");
+    let mut late = 0.0f32;
+    for frame in 0..180 {
+        let stats = sim.step().expect("step");
+        assert!(stats.solver.converged, "frame {frame}: {:?}", stats.solver);
+        if frame >= 90 {
+            late = late.max(stats.strain(SpringClass::Structural));
+        }
+    }
+    let com = sim.particles().center_of_mass();
+    eprintln!(
+        "implicit drape 32², 2 substeps: largest structural strain {:.2} % over 1.5–3 s, \
+         contacts {}, centre of mass {com}",
+        100.0 * late,
+        sim.stats().contacts
+    );
+    assert!(late < 0.05, "structural strain {late}");
+    assert!(sim.stats().contacts > 100, "{}", sim.stats().contacts);
+    assert!(com.y > 0.0 && com.x.hypot(com.z) < 0.05, "{com}");
+}

@@ -26,8 +26,8 @@ use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
 use super::{
-    CgStats, Filter, PARTICLES_PER_TASK, Sym3, assemble, constrain, finish, new_contacts, reduce,
-    spring_params, task_sum,
+    CgStats, Filter, PARTICLES_PER_TASK, Sym3, assemble, constrain, gravity_term, new_contacts,
+    reduce, spring_params, task_sum,
 };
 use crate::simd::{self, Kernel};
 use crate::solver::SubstepCtx;
@@ -227,10 +227,13 @@ struct ClassArrays {
     term: Soa,
 }
 
-/// Filter kinds in [`GridScratch::kind`].
+/// Filter kinds in [`GridScratch::kind`]: [`Filter::Free`], [`Filter::Fixed`],
+/// [`Filter::Normal`] and [`Filter::Stuck`]. The kinds that fix all three directions have the
+/// bit [`FIXED`] set, the contacts the bit [`NORMAL`].
 const FREE: u8 = 0;
 const FIXED: u8 = 1;
 const NORMAL: u8 = 2;
+const STUCK: u8 = 3;
 
 /// Scratch of the grid path, sized once per cloth.
 #[derive(Debug, Clone, Default)]
@@ -247,7 +250,6 @@ pub(crate) struct GridScratch {
     /// [`FREE`], [`FIXED`] or [`NORMAL`].
     kind: Vec<u8>,
     normal: Soa,
-    collider: Vec<u32>,
     dots: Vec<f32>,
     partial: Vec<f64>,
     /// Each band's ring of three rows of terms ([`band`]).
@@ -308,7 +310,7 @@ fn apply(kind: u8, n: [f32; 3], p: [f32; 3]) -> [f32; 3] {
     let pick = |pv: f32, wv: f32| {
         if kind == FREE {
             pv
-        } else if kind == FIXED {
+        } else if kind & FIXED != 0 {
             0.0
         } else {
             wv
@@ -324,6 +326,11 @@ fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
 
 #[inline]
 fn get(v: &[&[f32]; 3], j: usize) -> [f32; 3] {
+    [v[0][j], v[1][j], v[2][j]]
+}
+
+#[inline]
+fn get_mut(v: &[&mut [f32]; 3], j: usize) -> [f32; 3] {
     [v[0][j], v[1][j], v[2][j]]
 }
 
@@ -421,7 +428,6 @@ impl GridScratch {
             p.resize(n, 0.0);
         }
         self.kind.resize(n, FREE);
-        self.collider.resize(n, 0);
         self.dots.resize(n, 0.0);
         self.partial.resize(n.div_ceil(PARTICLES_PER_TASK), 0.0);
     }
@@ -845,11 +851,12 @@ pub(super) fn substep(
     } else {
         0.0
     };
-    let g_h = if cfg.forces.gravity {
-        cfg.gravity.length() * h
+    let gravity = if cfg.forces.gravity {
+        cfg.gravity
     } else {
-        0.0
+        Vec3::ZERO
     };
+    let g_h = gravity.length() * h;
 
     sc.rest_lengths(ctx.topology, cols);
 
@@ -910,11 +917,11 @@ pub(super) fn substep(
             .zip(chunks3(&mut sc.dv, band))
             .zip(chunks3(&mut sc.normal, band))
             .zip(sc.kind.par_chunks_mut(band))
-            .zip(sc.collider.par_chunks_mut(band))
             .zip(precond)
+            .zip(sc.dots.par_chunks_mut(band))
             .enumerate()
             .for_each(
-                |(task, (((((mut rhs, mut dv), mut normal), kind), collider), pre))| {
+                |(task, (((((mut rhs, mut dv), mut normal), kind), pre), dots))| {
                     let ((m0, m1, m2), (m3, m4, m5), (m6, m7, m8)) = pre;
                     let mut m = [m0, m1, m2, m3, m4, m5, m6, m7, m8];
                     let base = task * band;
@@ -942,25 +949,32 @@ pub(super) fn substep(
                                     };
                             }
                         }
-                        let inverse = sum.to_mat3().inverse().to_cols_array();
+                        let inverse = sum.to_mat3().inverse();
+                        dots[j] = gravity_term(gravity, h, p.mass[i], p.inv_mass[i], inverse);
+                        let inverse = inverse.to_cols_array();
                         for (dst, value) in m.iter_mut().zip(inverse) {
                             dst[j] = value;
                         }
+                        let mut b = Vec3::from(get_mut(&rhs, j));
                         let (filter, start) = constrain(
                             p.position[i],
                             p.velocity[i],
+                            p.mass[i] + diag,
                             p.inv_mass[i],
+                            &mut b,
                             colliders,
                             h,
                             g_h,
                         );
+                        put(&mut rhs, j, b.into());
                         put(&mut dv, j, start.into());
-                        (kind[j], collider[j]) = match filter {
-                            Filter::Free => (FREE, 0),
-                            Filter::Fixed => (FIXED, 0),
-                            Filter::Normal(nrm, ci) => {
+                        kind[j] = match filter {
+                            Filter::Free => FREE,
+                            Filter::Fixed => FIXED,
+                            Filter::Stuck => STUCK,
+                            Filter::Normal(nrm) => {
                                 put(&mut normal, j, nrm.into());
-                                (NORMAL, ci)
+                                NORMAL
                             }
                         };
                         if !matches!(filter, Filter::Normal(..)) {
@@ -970,6 +984,8 @@ pub(super) fn substep(
                 },
             );
     }
+
+    let floor = reduce(&sc.dots, &mut sc.partial);
 
     // 3. Modified PCG (Baraff & Witkin 1998, §5.3), as on the reference path.
     let k = PARTICLES_PER_TASK;
@@ -994,7 +1010,7 @@ pub(super) fn substep(
                 }
             });
     }
-    let delta0 = reduce(&sc.dots, &mut sc.partial);
+    let delta0 = reduce(&sc.dots, &mut sc.partial).max(floor);
     // r = filter(b − A·Δv), c = filter(P·r), δ = r·c.
     let mass = &ctx.particles.mass;
     let mut q = std::mem::take(&mut sc.q);
@@ -1067,53 +1083,23 @@ pub(super) fn substep(
         iterations += 1;
     }
     *cg = CgStats::new(iterations, delta, delta0, tol2);
-
-    // 4. Friction from the constraint impulses, the new velocities and positions, then the
-    // contacts the substep reached.
-    let dv = std::mem::take(&mut sc.dv);
-    sc.multiply(kernel, rows, cols, mass, diag, &dv, &mut q, false);
-    sc.dv = dv;
+    // 4. The new velocities and positions (friction was in the solve), then the contacts the
+    // substep reached.
     sc.q = q;
-    let colliders = ctx.colliders;
     let p = &mut *ctx.particles;
-    let (kind, normal, collider) = (&sc.kind, &sc.normal, &sc.collider);
     p.position
         .par_chunks_mut(k)
         .zip(p.velocity.par_chunks_mut(k))
-        .zip(p.inv_mass.par_chunks(k))
         .zip(chunks3_ref(&sc.dv, k))
-        .zip(chunks3_ref(&sc.q, k))
-        .zip(chunks3_ref(&sc.rhs, k))
-        .enumerate()
-        .for_each(|(task, (((((x, v), w), dv), aq), b))| {
-            let base = task * k;
-            for j in 0..x.len() {
-                let i = base + j;
-                let filter = match kind[i] {
-                    FREE => Filter::Free,
-                    FIXED => Filter::Fixed,
-                    _ => Filter::Normal(nrm(normal, i).into(), collider[i]),
-                };
-                finish(
-                    &mut x[j],
-                    &mut v[j],
-                    w[j],
-                    get(&dv, j).into(),
-                    filter,
-                    get(&aq, j).into(),
-                    get(&b, j).into(),
-                    colliders,
-                    h,
-                );
+        .for_each(|((x, v), dv)| {
+            for (j, (x, v)) in x.iter_mut().zip(v).enumerate() {
+                *v += Vec3::from(get(&dv, j));
+                *x += h * *v;
             }
         });
-    let contacts = new_contacts(p, colliders, h);
-    let constrained: u32 = sc
-        .kind
-        .par_chunks(k)
-        .map(|f| f.iter().filter(|&&f| f == NORMAL).count() as u32)
-        .sum();
-    ctx.contacts.contacts = contacts + constrained;
+    let colliders = ctx.colliders;
+    let kind = &sc.kind;
+    ctx.contacts.contacts = new_contacts(p, colliders, h, |i| kind[i] & NORMAL != 0);
 }
 
 #[inline]
