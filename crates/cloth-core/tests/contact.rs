@@ -308,7 +308,8 @@ fn measured_acceleration(sim: &mut Simulation) -> (f32, f32) {
 /// Coulomb's law, static case: with μ_s = 0.8 > tan 30° ≈ 0.577 the friction needed to
 /// hold the cloth (m·g·sin θ) is below μ_s times the normal force (m·g·cos θ), so it does
 /// not move: after 1 s the centre of mass has moved less than 1e-5 m (f32 rounding of the
-/// projection, ~1e-8 m per substep, over 1920 substeps), for symplectic Euler and Verlet.
+/// projection, ~1e-8 m per substep, over 1920 substeps), for symplectic Euler, Verlet,
+/// implicit Euler and XPBD.
 #[test]
 fn incline_static_friction_holds() {
     for integrator in [
@@ -333,7 +334,8 @@ fn incline_static_friction_holds() {
 /// acceleration measured from the distance slid in 1 s (s = ½at²) and from the velocity
 /// (v = at) is within 2% of it (the integrators' own error here is ~1/N = 0.05% for N =
 /// 1920 substeps; 2% leaves room without hiding a wrong friction law, which would be off by
-/// ≥ 10%).
+/// ≥ 10%), for symplectic Euler, Verlet, implicit Euler (its kinetic impulse in the solve's
+/// right-hand side) and XPBD (0.7 % over: its friction acts on positions).
 #[test]
 fn incline_kinetic_friction_acceleration() {
     let (mu_s, mu_k) = (0.4_f32, 0.3_f32);
@@ -362,7 +364,7 @@ fn incline_kinetic_friction_acceleration() {
 }
 
 /// Frictionless incline: a = g sin θ = 4.905 m/s², from the distance and from the velocity,
-/// within 2% (same reasoning as the kinetic case).
+/// within 2% (same reasoning as the kinetic case), for the same four integrators.
 #[test]
 fn incline_frictionless_acceleration() {
     let expected = G * THETA.sin();
@@ -394,13 +396,14 @@ fn incline_frictionless_acceleration() {
 
 /// A ground plane rising at V = 0.5 m/s lifts a cloth resting on it. The contact removes
 /// the approaching relative normal velocity, so a particle pressed onto the plane by
-/// gravity ends every substep moving with the plane: for symplectic Euler and Verlet, after
-/// every step each particle's velocity equals (0, V, 0) within 1e-4 m/s (f32 rounding; the
+/// gravity ends every substep moving with the plane: for symplectic Euler, Verlet, implicit
+/// Euler (whose sticking contacts are fixed at the plane's velocity in its solve) and XPBD,
+/// after every step each particle's velocity equals (0, V, 0) within 1e-4 m/s (f32 rounding; the
 /// gravity kick of one substep, g·h ≈ 5e-3 m/s, is fifty times larger, so a missed contact
 /// would show). Forward Euler moves positions with the velocity from before the substep,
 /// so a particle that sits exactly on the moving surface may be caught only one substep
 /// later: its velocity is within one substep's kick, 2·g·h (gravity plus the air drag and
-/// spring forces of that substep), of V. For all three, no particle is ever below the
+/// spring forces of that substep), of V. For all five, no particle is ever below the
 /// plane's contact surface (1e-5 m), and after 1 s the plane has risen V·t = 0.5 m
 /// (1e-4 m) and the cloth with it (its centre of mass at the contact surface, 1e-5 m).
 #[test]
@@ -409,6 +412,8 @@ fn rising_plane_carries_the_cloth() {
         Integrator::ForwardEuler,
         Integrator::SymplecticEuler,
         Integrator::Verlet,
+        Integrator::ImplicitEuler,
+        Integrator::Xpbd,
     ] {
         let cloth = GridBuilder::new(8, 8)
             .size(0.5, 0.5)
