@@ -193,14 +193,14 @@ fn bad_meshes_are_reported() {
 
 /// Contact jitter. On the ground: a cloth dropped flat from 0.85 m onto a plane comes to rest (the
 /// contact removes the normal velocity and static friction the tangential one): kinetic energy
-/// at most 1e-9 J (rms speed 8e-5 m/s) over a second, from 2 s to 3 s for every integrator but
-/// forward Euler (which gains energy every step and is not meant for resting cloth) and
-/// implicit Euler, from 3 s to 4 s for implicit Euler: at its one 1/60 s substep the landing
-/// stretches the cloth (80 % for a step), and the stretch slides out under kinetic friction
-/// until about 3 s (2.9e-8 J at most from 2 s to 3 s, 2.8e-10 J at most from 3 s to 4 s). At rest the cloth
-/// keeps no more than 1 % structural strain (symplectic Euler's ends at 0.03 %, XPBD's at
-/// 0.19 %, implicit Euler's at 0.22 %; implicit Euler's friction applied after the solve, before it moved into
-/// the solve, froze the landing's stretch at 9.6 % and passed the energy bound from 1 s on).
+/// at most 1e-9 J (rms speed 8e-5 m/s) from 2 s to 3 s, for every integrator but forward
+/// Euler (which gains energy every step and is not meant for resting cloth), and at rest the
+/// cloth keeps no more than 1 % structural strain (symplectic Euler's ends at 0.03 %, XPBD's
+/// at 0.19 %, implicit Euler's at 0.21 %, its kinetic energy at most 1.1e-10 J). Implicit
+/// Euler's friction applied after the solve, before it moved into the solve, passed the
+/// energy bound by freezing the landing's stretch at 9.6 %; with its friction in the solve
+/// but its contacts never released, the stretch slid out only by 3 s (2.9e-8 J from 2 s to
+/// 3 s).
 /// On a ball (the drape scene, 0.288 kg): the
 /// kinetic energy at 6 s (32×32 cloth) is below 2e-6 J (rms speed < 3.7 mm/s) and below a
 /// thousandth of its value at 1 s, for symplectic Euler, position Verlet, implicit Euler (one
@@ -216,12 +216,7 @@ fn resting_contact_does_not_buzz() {
         scene.colliders.remove(0); // no ball: the cloth falls 0.85 m onto the ground
         scene.solver.kind = integrator.name().into();
         let mut sim = scene.build().expect("build");
-        let start = if integrator == Integrator::ImplicitEuler {
-            180
-        } else {
-            120
-        };
-        for _ in 0..start {
+        for _ in 0..120 {
             sim.step().expect("step");
         }
         let mut worst = 0.0f64;
@@ -232,9 +227,8 @@ fn resting_contact_does_not_buzz() {
             strain = stats.strain(SpringClass::Structural);
         }
         eprintln!(
-            "{integrator:?} on the ground: at most {worst:.3e} J over the second from {} s, \
-             structural strain {:.3} % at its end",
-            start / 60,
+            "{integrator:?} on the ground: at most {worst:.3e} J from 2 s to 3 s, structural \
+             strain {:.3} % at 3 s",
             100.0 * strain
         );
         assert!(worst <= 1e-9, "{integrator:?} on the ground: {worst} J");
@@ -273,25 +267,25 @@ fn resting_contact_does_not_buzz() {
 /// in-plane tension than friction can hold. Every particle touching the ground is held by
 /// static friction, so the net tangential force of its springs (Hooke's F = k(|L| − L0)·L/|L|,
 /// computed here from the topology, independently of the solver) is at most μ_s times its
-/// normal force N = m·g − F·n. The cloth (48², the drape scene without its ball) falls 0.85 m
-/// flat onto the ground and is checked at 4 s, once its kinetic energy is below 1e-9 J.
-/// Tolerance: 1 % over μ_s·N (symplectic Euler and Verlet end at 0.995 and 0.997 of it: the
-/// friction saturates where the landing's stretch was let out).
-///
-/// For the explicit integrators only. Measured, not asserted (the cloth at rest, 4 s):
-/// - implicit Euler at the scene's one substep per frame ends with folds (2,074 particles on
-///   the ground), up to 1.93 × μ_s·N on the pressed particles, and 13 particles held on the
-///   ground while their springs pull them off (up to 4.6 × m·g): its contact constrains a
-///   resting particle's normal velocity and releases it only when the particle leaves, and a
-///   release decided from the particle's own row of the system (tried) made the drape on the
-///   ball hop and stretch (26 %); at 2 substeps 1.22 ×, at 8 substeps 1.03 ×. Before its
-///   friction moved into the solve it froze the landing's stretch (9.6 %; see
-///   `resting_contact_does_not_buzz`);
-/// - XPBD ends at 25 × (its springs' force is −λ/h², Hooke's only when its iterations
-///   converge).
+/// normal force N = m·g − F·n, and N is positive (contact pushes, never pulls). The cloth (48²,
+/// the drape scene without its ball) falls 0.85 m flat onto the ground and is checked at 4 s,
+/// once its kinetic energy is below 1e-9 J. Tolerance: 1 % over μ_s·N for symplectic Euler and
+/// Verlet (which end at 0.995 and 0.997 of it: the friction saturates where the landing's
+/// stretch was let out, and the cloth lies flat), 5 % for implicit Euler at its one substep per
+/// frame (1.023; its CG stops at 1e-3 of the right-hand side, and its friction is decided from
+/// each particle's own row; it lands with folds: 1,733 particles on the ground, at least half
+/// asserted). Measured, not asserted: implicit Euler at 2 substeps 1.11 ×, at 8 1.14 ×; before
+/// its friction moved into the solve it froze the landing's stretch (9.6 % strain), and before
+/// its contacts were released it held particles on the ground while their springs pulled them
+/// off (13, up to 4.6 m·g) and ended at 1.93 × on the others; XPBD ends at 25 × (its springs'
+/// force is −λ/h², Hooke's only when its iterations converge).
 #[test]
 fn cloth_at_rest_on_the_ground_is_within_the_friction_cone() {
-    for integrator in [Integrator::SymplecticEuler, Integrator::Verlet] {
+    for (integrator, tolerance) in [
+        (Integrator::SymplecticEuler, 1.01),
+        (Integrator::Verlet, 1.01),
+        (Integrator::ImplicitEuler, 1.05),
+    ] {
         let mut scene = builtin("drape").expect("drape");
         scene.colliders.remove(0); // no ball: the cloth falls 0.85 m onto the ground
         scene.solver.kind = integrator.name().into();
@@ -337,8 +331,68 @@ fn cloth_at_rest_on_the_ground_is_within_the_friction_cone() {
             "{integrator:?}: {touching} particles on the ground, largest tangential spring force \
              {worst:.3} × μ_s·N"
         );
-        assert_eq!(touching, p.len(), "{integrator:?}: the cloth lies flat");
-        assert!(worst <= 1.01, "{integrator:?}: {worst} × μ_s·N");
+        if integrator == Integrator::ImplicitEuler {
+            assert!(
+                touching > p.len() / 2,
+                "{integrator:?}: {touching} touching"
+            );
+        } else {
+            assert_eq!(touching, p.len(), "{integrator:?}: the cloth lies flat");
+        }
+        assert!(worst <= tolerance, "{integrator:?}: {worst} × μ_s·N");
+    }
+}
+
+/// Contact is unilateral (Signorini): it pushes, never pulls. A cloth lying at rest on the
+/// ground (48², the drape scene without its ball, 2.5 s after it fell) is lifted by one corner,
+/// pinned and raised 0.6 m in 1 s: the cloth follows its corner off the ground. After the
+/// second, the corner is at its target (1 mm), more than a third of the particles are over
+/// 1 cm above the ground's contact surface (symplectic Euler lifts 1,025 of 2,304), and no
+/// step reports an instability, for every integrator but forward Euler. Implicit Euler's
+/// resting contacts constrain the normal velocity in its solve; before they were released
+/// where the solve's impulse pulled the particle in, its neighbours stayed on the ground and
+/// the corner's spring tore to 10× its length in 26 steps. At its one 1/60 s substep it lifts
+/// 1,779 particles and stretches to 35 % while the corner rises 1 cm per step (2 substeps
+/// 26 %, 4 21 %, 16 9.0 % and 1,032 particles, as symplectic Euler's 8.4 % and 1,025).
+#[test]
+fn a_cloth_lifts_off_the_ground_by_a_corner() {
+    for integrator in Integrator::ALL {
+        if integrator == Integrator::ForwardEuler {
+            continue;
+        }
+        let mut scene = builtin("drape").expect("drape");
+        scene.colliders.remove(0); // no ball: the cloth falls 0.85 m onto the ground
+        scene.solver.kind = integrator.name().into();
+        let mut sim = scene.build().expect("build");
+        for _ in 0..150 {
+            sim.step().expect("step");
+        }
+        let start = sim.particles().position[0];
+        sim.pin(0).expect("pin");
+        let mut strain = 0.0f32;
+        for k in 1..=60 {
+            let target = start + Vec3::new(0.0, 0.6 * k as f32 / 60.0, 0.0);
+            sim.set_pin_target(0, target).expect("target");
+            let stats = sim
+                .step()
+                .unwrap_or_else(|e| panic!("{integrator:?}, step {k} of the lift: {e}"));
+            strain = strain.max(stats.strain(SpringClass::Structural));
+        }
+        let p = sim.particles();
+        let surface = -0.3 + sim.colliders()[0].thickness;
+        let lifted = p.position.iter().filter(|x| x.y > surface + 0.01).count();
+        eprintln!(
+            "{integrator:?}: corner at {}, {lifted} particles lifted, largest structural strain \
+             {:.1} % during the lift",
+            p.position[0],
+            100.0 * strain
+        );
+        assert!(
+            (p.position[0] - (start + Vec3::new(0.0, 0.6, 0.0))).length() < 1e-3,
+            "{integrator:?}: corner at {}",
+            p.position[0]
+        );
+        assert!(lifted > p.len() / 3, "{integrator:?}: {lifted} lifted");
     }
 }
 

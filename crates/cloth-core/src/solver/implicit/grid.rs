@@ -27,7 +27,7 @@ use rayon::prelude::*;
 
 use super::{
     CgStats, Filter, PARTICLES_PER_TASK, Sym3, assemble, constrain, gravity_term, new_contacts,
-    reduce, spring_params, task_sum,
+    reduce, release, spring_params, task_sum,
 };
 use crate::simd::{self, Kernel};
 use crate::solver::SubstepCtx;
@@ -235,6 +235,17 @@ const FIXED: u8 = 1;
 const NORMAL: u8 = 2;
 const STUCK: u8 = 3;
 
+/// The kind a filter is stored as.
+#[inline]
+fn encode(filter: Filter) -> u8 {
+    match filter {
+        Filter::Free => FREE,
+        Filter::Fixed => FIXED,
+        Filter::Stuck(_) => STUCK,
+        Filter::Normal(_) => NORMAL,
+    }
+}
+
 /// Scratch of the grid path, sized once per cloth.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct GridScratch {
@@ -250,6 +261,8 @@ pub(crate) struct GridScratch {
     /// [`FREE`], [`FIXED`] or [`NORMAL`].
     kind: Vec<u8>,
     normal: Soa,
+    /// The kinetic friction impulse taken out of `rhs` ([`constrain`]).
+    friction: Soa,
     dots: Vec<f32>,
     partial: Vec<f64>,
     /// Each band's ring of three rows of terms ([`band`]).
@@ -421,6 +434,7 @@ impl GridScratch {
             &mut self.q,
             &mut self.s,
             &mut self.normal,
+            &mut self.friction,
         ] {
             resize_soa(v, n);
         }
@@ -444,6 +458,118 @@ impl GridScratch {
         for sums in &mut self.band_sums {
             sums.resize(tasks, 0.0);
         }
+    }
+
+    /// Modified PCG (Baraff & Witkin 1998, §5.3) on the filters in `self.kind` and
+    /// `self.normal`, from the Δv in `self.dv`, as on the reference path; returns the
+    /// iterations, δ and δ0.
+    #[allow(clippy::too_many_arguments)]
+    fn pcg(
+        &mut self,
+        kernel: Kernel,
+        rows: usize,
+        cols: usize,
+        mass: &[f32],
+        diag: f32,
+        floor: f64,
+        settings: crate::config::ImplicitSettings,
+        cap: u32,
+    ) -> (u32, f64, f64) {
+        let k = PARTICLES_PER_TASK;
+        // s = filter(b), c = P·s, δ0 = s·c.
+        {
+            let (kind, normal) = (&self.kind, &self.normal);
+            chunks3(&mut self.s, k)
+                .zip(chunks3(&mut self.c, k))
+                .zip(chunks3_ref(&self.rhs, k))
+                .zip(chunks9(&self.precond, k))
+                .zip(self.dots.par_chunks_mut(k))
+                .enumerate()
+                .for_each(|(task, ((((mut s, mut c), b), m), dots))| {
+                    let base = task * k;
+                    for (j, dot_j) in dots.iter_mut().enumerate() {
+                        let i = base + j;
+                        let sv = apply(kind[i], nrm(normal, i), get(&b, j));
+                        let cv = precond_mul(&m, j, sv);
+                        put(&mut s, j, sv);
+                        put(&mut c, j, cv);
+                        *dot_j = dot(sv, cv);
+                    }
+                });
+        }
+        let delta0 = reduce(&self.dots, &mut self.partial).max(floor);
+        // r = filter(b − A·Δv), c = filter(P·r), δ = r·c.
+        let mut q = std::mem::take(&mut self.q);
+        let dv = std::mem::take(&mut self.dv);
+        self.multiply(kernel, rows, cols, mass, diag, &dv, &mut q, false);
+        self.dv = dv;
+        {
+            let (kind, normal) = (&self.kind, &self.normal);
+            chunks3(&mut self.r, k)
+                .zip(chunks3(&mut self.c, k))
+                .zip(chunks3_ref(&self.rhs, k))
+                .zip(chunks3_ref(&q, k))
+                .zip(chunks9(&self.precond, k))
+                .zip(self.dots.par_chunks_mut(k))
+                .enumerate()
+                .for_each(|(task, (((((mut r, mut c), b), aq), m), dots))| {
+                    let base = task * k;
+                    for (j, dot_j) in dots.iter_mut().enumerate() {
+                        let i = base + j;
+                        let (bv, qv) = (get(&b, j), get(&aq, j));
+                        let rv = apply(
+                            kind[i],
+                            nrm(normal, i),
+                            [bv[0] - qv[0], bv[1] - qv[1], bv[2] - qv[2]],
+                        );
+                        let cv = apply(kind[i], nrm(normal, i), precond_mul(&m, j, rv));
+                        put(&mut r, j, rv);
+                        put(&mut c, j, cv);
+                        *dot_j = dot(rv, cv);
+                    }
+                });
+        }
+        let mut delta = reduce(&self.dots, &mut self.partial);
+        let tol2 = f64::from(settings.tolerance) * f64::from(settings.tolerance);
+        let mut iterations = 0;
+        while delta > tol2 * delta0 && iterations < cap {
+            // q = filter(A·c), c·q.
+            let c = std::mem::take(&mut self.c);
+            let cq = self.multiply(kernel, rows, cols, mass, diag, &c, &mut q, true);
+            self.c = c;
+            if cq <= 0.0 {
+                break;
+            }
+            let alpha = (delta / cq) as f32;
+            // Δv += α·c, r −= α·q, s = P·r, r·s.
+            chunks3(&mut self.dv, k)
+                .zip(chunks3(&mut self.r, k))
+                .zip(chunks3(&mut self.s, k))
+                .zip(chunks3_ref(&self.c, k))
+                .zip(chunks3_ref(&q, k))
+                .zip(chunks9(&self.precond, k))
+                .zip(self.dots.par_chunks_mut(k))
+                .zip(self.partial.par_iter_mut())
+                .for_each(|(((((((dv, r), s), c), q), m), dots), partial)| {
+                    simd::implicit_update(kernel, alpha, [dv, r, s], c, q, m, dots);
+                    // The task's share of `reduce`, in the same pass.
+                    *partial = task_sum(dots);
+                });
+            let delta_old = delta;
+            delta = self.partial.iter().sum();
+            let beta = (delta / delta_old) as f32;
+            // c = filter(s + β·c).
+            chunks3(&mut self.c, k)
+                .zip(chunks3_ref(&self.s, k))
+                .zip(self.kind.par_chunks(k))
+                .zip(chunks3_ref(&self.normal, k))
+                .for_each(|(((c, s), kind), normal)| {
+                    simd::implicit_direction(kernel, beta, c, s, kind, normal);
+                });
+            iterations += 1;
+        }
+        self.q = q;
+        (iterations, delta, delta0)
     }
 
     /// y = A·p (`filtered`: then y is filtered too); returns p·y, the sum of [`reduce`]: each
@@ -916,12 +1042,13 @@ pub(super) fn substep(
         chunks3(&mut sc.rhs, band)
             .zip(chunks3(&mut sc.dv, band))
             .zip(chunks3(&mut sc.normal, band))
+            .zip(chunks3(&mut sc.friction, band))
             .zip(sc.kind.par_chunks_mut(band))
             .zip(precond)
             .zip(sc.dots.par_chunks_mut(band))
             .enumerate()
             .for_each(
-                |(task, (((((mut rhs, mut dv), mut normal), kind), pre), dots))| {
+                |(task, ((((((mut rhs, mut dv), mut normal), mut friction), kind), pre), dots))| {
                     let ((m0, m1, m2), (m3, m4, m5), (m6, m7, m8)) = pre;
                     let mut m = [m0, m1, m2, m3, m4, m5, m6, m7, m8];
                     let base = task * band;
@@ -956,30 +1083,23 @@ pub(super) fn substep(
                             dst[j] = value;
                         }
                         let mut b = Vec3::from(get_mut(&rhs, j));
+                        let mut fr = Vec3::ZERO;
                         let (filter, start) = constrain(
                             p.position[i],
                             p.velocity[i],
                             p.mass[i] + diag,
                             p.inv_mass[i],
                             &mut b,
+                            &mut fr,
                             colliders,
                             h,
                             g_h,
                         );
                         put(&mut rhs, j, b.into());
+                        put(&mut friction, j, fr.into());
                         put(&mut dv, j, start.into());
-                        kind[j] = match filter {
-                            Filter::Free => FREE,
-                            Filter::Fixed => FIXED,
-                            Filter::Stuck => STUCK,
-                            Filter::Normal(nrm) => {
-                                put(&mut normal, j, nrm.into());
-                                NORMAL
-                            }
-                        };
-                        if !matches!(filter, Filter::Normal(..)) {
-                            put(&mut normal, j, [0.0; 3]);
-                        }
+                        kind[j] = encode(filter);
+                        put(&mut normal, j, filter.normal().unwrap_or(Vec3::ZERO).into());
                     }
                 },
             );
@@ -988,104 +1108,67 @@ pub(super) fn substep(
     let floor = reduce(&sc.dots, &mut sc.partial);
 
     // 3. Modified PCG (Baraff & Witkin 1998, §5.3), as on the reference path.
-    let k = PARTICLES_PER_TASK;
-    // s = filter(b), c = P·s, δ0 = s·c.
-    {
-        let (kind, normal) = (&sc.kind, &sc.normal);
-        chunks3(&mut sc.s, k)
-            .zip(chunks3(&mut sc.c, k))
-            .zip(chunks3_ref(&sc.rhs, k))
-            .zip(chunks9(&sc.precond, k))
-            .zip(sc.dots.par_chunks_mut(k))
-            .enumerate()
-            .for_each(|(task, ((((mut s, mut c), b), m), dots))| {
-                let base = task * k;
-                for (j, dot_j) in dots.iter_mut().enumerate() {
-                    let i = base + j;
-                    let sv = apply(kind[i], nrm(normal, i), get(&b, j));
-                    let cv = precond_mul(&m, j, sv);
-                    put(&mut s, j, sv);
-                    put(&mut c, j, cv);
-                    *dot_j = dot(sv, cv);
-                }
-            });
-    }
-    let delta0 = reduce(&sc.dots, &mut sc.partial).max(floor);
-    // r = filter(b − A·Δv), c = filter(P·r), δ = r·c.
     let mass = &ctx.particles.mass;
+    let (mut iterations, mut delta, mut delta0) = sc.pcg(
+        kernel,
+        rows,
+        cols,
+        mass,
+        diag,
+        floor,
+        settings,
+        settings.max_iterations,
+    );
+
+    // 4. The contacts that pull their particle in are released and the solve runs again, once
+    // (as on the reference path).
+    let k = PARTICLES_PER_TASK;
     let mut q = std::mem::take(&mut sc.q);
     let dv = std::mem::take(&mut sc.dv);
     sc.multiply(kernel, rows, cols, mass, diag, &dv, &mut q, false);
     sc.dv = dv;
-    {
-        let (kind, normal) = (&sc.kind, &sc.normal);
-        chunks3(&mut sc.r, k)
-            .zip(chunks3(&mut sc.c, k))
-            .zip(chunks3_ref(&sc.rhs, k))
-            .zip(chunks3_ref(&q, k))
-            .zip(chunks9(&sc.precond, k))
-            .zip(sc.dots.par_chunks_mut(k))
-            .enumerate()
-            .for_each(|(task, (((((mut r, mut c), b), aq), m), dots))| {
-                let base = task * k;
-                for (j, dot_j) in dots.iter_mut().enumerate() {
-                    let i = base + j;
-                    let (bv, qv) = (get(&b, j), get(&aq, j));
-                    let rv = apply(
-                        kind[i],
-                        nrm(normal, i),
-                        [bv[0] - qv[0], bv[1] - qv[1], bv[2] - qv[2]],
-                    );
-                    let cv = apply(kind[i], nrm(normal, i), precond_mul(&m, j, rv));
-                    put(&mut r, j, rv);
-                    put(&mut c, j, cv);
-                    *dot_j = dot(rv, cv);
+    let released: u32 = sc
+        .kind
+        .par_chunks_mut(k)
+        .zip(chunks3(&mut sc.normal, k))
+        .zip(chunks3(&mut sc.rhs, k))
+        .zip(chunks3_ref(&sc.friction, k))
+        .zip(chunks3_ref(&q, k))
+        .map(|((((kind, mut normal), mut rhs), friction), aq)| {
+            let mut count = 0;
+            for (j, kind) in kind.iter_mut().enumerate() {
+                if *kind & NORMAL == 0 {
+                    continue;
                 }
-            });
-    }
-    let mut delta = reduce(&sc.dots, &mut sc.partial);
-    let tol2 = f64::from(settings.tolerance) * f64::from(settings.tolerance);
-    let mut iterations = 0;
-    while delta > tol2 * delta0 && iterations < settings.max_iterations {
-        // q = filter(A·c), c·q.
-        let c = std::mem::take(&mut sc.c);
-        let cq = sc.multiply(kernel, rows, cols, mass, diag, &c, &mut q, true);
-        sc.c = c;
-        if cq <= 0.0 {
-            break;
-        }
-        let alpha = (delta / cq) as f32;
-        // Δv += α·c, r −= α·q, s = P·r, r·s.
-        chunks3(&mut sc.dv, k)
-            .zip(chunks3(&mut sc.r, k))
-            .zip(chunks3(&mut sc.s, k))
-            .zip(chunks3_ref(&sc.c, k))
-            .zip(chunks3_ref(&q, k))
-            .zip(chunks9(&sc.precond, k))
-            .zip(sc.dots.par_chunks_mut(k))
-            .zip(sc.partial.par_iter_mut())
-            .for_each(|(((((((dv, r), s), c), q), m), dots), partial)| {
-                simd::implicit_update(kernel, alpha, [dv, r, s], c, q, m, dots);
-                // The task's share of `reduce`, in the same pass.
-                *partial = task_sum(dots);
-            });
-        let delta_old = delta;
-        delta = sc.partial.iter().sum();
-        let beta = (delta / delta_old) as f32;
-        // c = filter(s + β·c).
-        chunks3(&mut sc.c, k)
-            .zip(chunks3_ref(&sc.s, k))
-            .zip(sc.kind.par_chunks(k))
-            .zip(chunks3_ref(&sc.normal, k))
-            .for_each(|(((c, s), kind), normal)| {
-                simd::implicit_direction(kernel, beta, c, s, kind, normal);
-            });
-        iterations += 1;
-    }
-    *cg = CgStats::new(iterations, delta, delta0, tol2);
-    // 4. The new velocities and positions (friction was in the solve), then the contacts the
-    // substep reached.
+                let n = Vec3::from(get_mut(&normal, j));
+                let mut filter = if *kind == STUCK {
+                    Filter::Stuck(n)
+                } else {
+                    Filter::Normal(n)
+                };
+                let mut b = Vec3::from(get_mut(&rhs, j));
+                let (fr, aqv) = (get(&friction, j).into(), get(&aq, j).into());
+                if release(&mut filter, &mut b, fr, aqv) {
+                    *kind = encode(filter);
+                    put(&mut normal, j, [0.0; 3]);
+                    put(&mut rhs, j, b.into());
+                    count += 1;
+                }
+            }
+            count
+        })
+        .sum();
     sc.q = q;
+    if released > 0 && iterations < settings.max_iterations {
+        let cap = settings.max_iterations - iterations;
+        let (more, d, d0) = sc.pcg(kernel, rows, cols, mass, diag, floor, settings, cap);
+        iterations += more;
+        (delta, delta0) = (d, d0);
+    }
+    let tol2 = f64::from(settings.tolerance) * f64::from(settings.tolerance);
+    *cg = CgStats::new(iterations, delta, delta0, tol2);
+    // 5. The new velocities and positions (friction was in the solve), then the contacts the
+    // substep reached.
     let p = &mut *ctx.particles;
     p.position
         .par_chunks_mut(k)
