@@ -191,6 +191,15 @@ fn bad_meshes_are_reported() {
     assert!(err.to_string().contains("colliders[0].file"), "{err}");
 }
 
+/// The drape scene without its ball, run by `integrator`: its 48² cloth falls 0.85 m flat
+/// onto the ground (with the drape's friction) and comes to rest there.
+fn on_the_ground(integrator: Integrator) -> Scene {
+    let mut scene = builtin("drape").expect("drape");
+    scene.colliders.remove(0);
+    scene.solver.kind = integrator.name().into();
+    scene
+}
+
 /// Contact jitter. On the ground: a cloth dropped flat from 0.85 m onto a plane comes to rest (the
 /// contact removes the normal velocity and static friction the tangential one): kinetic energy
 /// at most 1e-9 J (rms speed 8e-5 m/s) from 2 s to 3 s, for every integrator but forward
@@ -212,10 +221,7 @@ fn resting_contact_does_not_buzz() {
         if integrator == Integrator::ForwardEuler {
             continue;
         }
-        let mut scene = builtin("drape").expect("drape");
-        scene.colliders.remove(0); // no ball: the cloth falls 0.85 m onto the ground
-        scene.solver.kind = integrator.name().into();
-        let mut sim = scene.build().expect("build");
+        let mut sim = on_the_ground(integrator).build().expect("build");
         for _ in 0..120 {
             sim.step().expect("step");
         }
@@ -286,10 +292,7 @@ fn cloth_at_rest_on_the_ground_is_within_the_friction_cone() {
         (Integrator::Verlet, 1.01),
         (Integrator::ImplicitEuler, 1.05),
     ] {
-        let mut scene = builtin("drape").expect("drape");
-        scene.colliders.remove(0); // no ball: the cloth falls 0.85 m onto the ground
-        scene.solver.kind = integrator.name().into();
-        let mut sim = scene.build().expect("build");
+        let mut sim = on_the_ground(integrator).build().expect("build");
         let mut kinetic = 0.0;
         for _ in 0..240 {
             kinetic = sim.step().expect("step").kinetic_energy;
@@ -360,10 +363,7 @@ fn a_cloth_lifts_off_the_ground_by_a_corner() {
         if integrator == Integrator::ForwardEuler {
             continue;
         }
-        let mut scene = builtin("drape").expect("drape");
-        scene.colliders.remove(0); // no ball: the cloth falls 0.85 m onto the ground
-        scene.solver.kind = integrator.name().into();
-        let mut sim = scene.build().expect("build");
+        let mut sim = on_the_ground(integrator).build().expect("build");
         for _ in 0..150 {
             sim.step().expect("step");
         }
@@ -401,8 +401,7 @@ fn a_cloth_lifts_off_the_ground_by_a_corner() {
 /// contacts, listed from both ends, between particles closer than 1.05 × the thickness.
 #[test]
 fn contacts_list_collider_and_layer_contacts() {
-    let mut scene = builtin("drape").expect("drape");
-    scene.colliders.remove(0);
+    let mut scene = on_the_ground(Integrator::SymplecticEuler);
     scene.cloth.resolution = [12, 12];
     let mut sim = scene.build().expect("build");
     for _ in 0..90 {

@@ -447,13 +447,13 @@ impl ImplicitScratch {
 
     /// Modified PCG (Baraff & Witkin 1998, §5.3) on the filters in `self.filter`, from the Δv
     /// in `self.dv`, to `tolerance` of the larger of the filtered right-hand side and `floor`
-    /// (δ = rᵀ·P·r); returns the iterations, δ and that δ0.
+    /// (δ = rᵀ·P·r), in at most `cap` iterations; returns the iterations, δ and that δ0.
     fn pcg(
         &mut self,
         ctx: &SubstepCtx<'_>,
         diag: f32,
         floor: f64,
-        settings: crate::config::ImplicitSettings,
+        tolerance: f32,
         cap: u32,
     ) -> (u32, f64, f64) {
         // δ0 from the filtered, preconditioned right-hand side: s = filter(b), c = P·s.
@@ -497,7 +497,7 @@ impl ImplicitScratch {
                 }
             });
         let mut delta = reduce(&self.dots, &mut self.partial);
-        let tol2 = f64::from(settings.tolerance) * f64::from(settings.tolerance);
+        let tol2 = f64::from(tolerance) * f64::from(tolerance);
         let mut iterations = 0;
         while delta > tol2 * delta0 && iterations < cap {
             // q = filter(A·c), c·q.
@@ -880,8 +880,13 @@ pub(super) fn substep(
     let floor = reduce(&sc.dots, &mut sc.partial);
 
     // 3. Modified PCG (Baraff & Witkin 1998, §5.3).
-    let (mut iterations, mut delta, mut delta0) =
-        sc.pcg(ctx, diag, floor, settings, settings.max_iterations);
+    let (mut iterations, mut delta, mut delta0) = sc.pcg(
+        ctx,
+        diag,
+        floor,
+        settings.tolerance,
+        settings.max_iterations,
+    );
 
     // 4. Contacts that pull: the impulse a contact's constraint supplied, c = A·Δv − b, pulls
     // the particle onto the collider where c·n < 0; those contacts are released (free, and
@@ -908,7 +913,7 @@ pub(super) fn substep(
     sc.q = q;
     if released > 0 && iterations < settings.max_iterations {
         let cap = settings.max_iterations - iterations;
-        let (more, d, d0) = sc.pcg(ctx, diag, floor, settings, cap);
+        let (more, d, d0) = sc.pcg(ctx, diag, floor, settings.tolerance, cap);
         iterations += more;
         (delta, delta0) = (d, d0);
     }

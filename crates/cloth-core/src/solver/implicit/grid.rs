@@ -337,13 +337,9 @@ fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// Particle `j` of three component slices, shared or mutable.
 #[inline]
-fn get(v: &[&[f32]; 3], j: usize) -> [f32; 3] {
-    [v[0][j], v[1][j], v[2][j]]
-}
-
-#[inline]
-fn get_mut(v: &[&mut [f32]; 3], j: usize) -> [f32; 3] {
+fn get<S: std::ops::Deref<Target = [f32]>>(v: &[S; 3], j: usize) -> [f32; 3] {
     [v[0][j], v[1][j], v[2][j]]
 }
 
@@ -472,7 +468,7 @@ impl GridScratch {
         mass: &[f32],
         diag: f32,
         floor: f64,
-        settings: crate::config::ImplicitSettings,
+        tolerance: f32,
         cap: u32,
     ) -> (u32, f64, f64) {
         let k = PARTICLES_PER_TASK;
@@ -530,7 +526,7 @@ impl GridScratch {
                 });
         }
         let mut delta = reduce(&self.dots, &mut self.partial);
-        let tol2 = f64::from(settings.tolerance) * f64::from(settings.tolerance);
+        let tol2 = f64::from(tolerance) * f64::from(tolerance);
         let mut iterations = 0;
         while delta > tol2 * delta0 && iterations < cap {
             // q = filter(A·c), c·q.
@@ -1082,7 +1078,7 @@ pub(super) fn substep(
                         for (dst, value) in m.iter_mut().zip(inverse) {
                             dst[j] = value;
                         }
-                        let mut b = Vec3::from(get_mut(&rhs, j));
+                        let mut b = Vec3::from(get(&rhs, j));
                         let mut fr = Vec3::ZERO;
                         let (filter, start) = constrain(
                             p.position[i],
@@ -1116,7 +1112,7 @@ pub(super) fn substep(
         mass,
         diag,
         floor,
-        settings,
+        settings.tolerance,
         settings.max_iterations,
     );
 
@@ -1140,13 +1136,13 @@ pub(super) fn substep(
                 if *kind & NORMAL == 0 {
                     continue;
                 }
-                let n = Vec3::from(get_mut(&normal, j));
+                let n = Vec3::from(get(&normal, j));
                 let mut filter = if *kind == STUCK {
                     Filter::Stuck(n)
                 } else {
                     Filter::Normal(n)
                 };
-                let mut b = Vec3::from(get_mut(&rhs, j));
+                let mut b = Vec3::from(get(&rhs, j));
                 let (fr, aqv) = (get(&friction, j).into(), get(&aq, j).into());
                 if release(&mut filter, &mut b, fr, aqv) {
                     *kind = encode(filter);
@@ -1161,7 +1157,16 @@ pub(super) fn substep(
     sc.q = q;
     if released > 0 && iterations < settings.max_iterations {
         let cap = settings.max_iterations - iterations;
-        let (more, d, d0) = sc.pcg(kernel, rows, cols, mass, diag, floor, settings, cap);
+        let (more, d, d0) = sc.pcg(
+            kernel,
+            rows,
+            cols,
+            mass,
+            diag,
+            floor,
+            settings.tolerance,
+            cap,
+        );
         iterations += more;
         (delta, delta0) = (d, d0);
     }
