@@ -2136,7 +2136,9 @@ fn pair_correction(
     let ld = l[0] * rate_d[0] + l[1] * rate_d[1] + l[2] * rate_d[2];
     let num = (-constraint - alpha * lambda) * len - gamma * ld;
     let den = ((1.0 + gamma) * wsum + alpha) * len2;
-    let s = if ok { num / den } else { 0.0 };
+    // Zero where not `ok`, by a mask of the bits rather than a branch: with a branch the
+    // compiler loads the pair's rate inputs under the mask (`vmaskmovps`), after the test.
+    let s = f32::from_bits((num / den).to_bits() & 0_u32.wrapping_sub(u32::from(ok)));
     (s * len, s)
 }
 
