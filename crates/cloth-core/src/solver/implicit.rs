@@ -445,9 +445,18 @@ impl ImplicitScratch {
             });
     }
 
+    /// `self.q = A·Δv` (unfiltered) for the Δv in `self.dv`.
+    fn product_of_dv(&mut self, ctx: &SubstepCtx<'_>, diag: f32) {
+        let mut q = std::mem::take(&mut self.q);
+        let dv = std::mem::take(&mut self.dv);
+        self.multiply(ctx, diag, &dv, &mut q, false);
+        (self.q, self.dv) = (q, dv);
+    }
+
     /// Modified PCG (Baraff & Witkin 1998, §5.3) on the filters in `self.filter`, from the Δv
-    /// in `self.dv`, to `tolerance` of the larger of the filtered right-hand side and `floor`
-    /// (δ = rᵀ·P·r), in at most `cap` iterations; returns the iterations, δ and that δ0.
+    /// in `self.dv` with its product A·Δv in `self.q` ([`Self::product_of_dv`]), to
+    /// `tolerance` of the larger of the filtered right-hand side and `floor` (δ = rᵀ·P·r), in
+    /// at most `cap` iterations; returns the iterations, δ and that δ0.
     fn pcg(
         &mut self,
         ctx: &SubstepCtx<'_>,
@@ -476,9 +485,6 @@ impl ImplicitScratch {
         let delta0 = reduce(&self.dots, &mut self.partial).max(floor);
         // r = filter(b − A·Δv), c = filter(P·r).
         let mut q = std::mem::take(&mut self.q);
-        let dv = std::mem::take(&mut self.dv);
-        self.multiply(ctx, diag, &dv, &mut q, false);
-        self.dv = dv;
         self.r
             .par_chunks_mut(PARTICLES_PER_TASK)
             .zip(self.c.par_chunks_mut(PARTICLES_PER_TASK))
@@ -880,6 +886,7 @@ pub(super) fn substep(
     let floor = reduce(&sc.dots, &mut sc.partial);
 
     // 3. Modified PCG (Baraff & Witkin 1998, §5.3).
+    sc.product_of_dv(ctx, diag);
     let (mut iterations, mut delta, mut delta0) = sc.pcg(
         ctx,
         diag,
@@ -891,17 +898,14 @@ pub(super) fn substep(
     // 4. Contacts that pull: the impulse a contact's constraint supplied, c = A·Δv − b, pulls
     // the particle onto the collider where c·n < 0; those contacts are released (free, and
     // their kinetic friction taken back out of b) and the solve runs again from its Δv, once
-    // ([`release`]).
-    let mut q = std::mem::take(&mut sc.q);
-    let dv = std::mem::take(&mut sc.dv);
-    sc.multiply(ctx, diag, &dv, &mut q, false);
-    sc.dv = dv;
+    // ([`release`]). The second solve starts from this product: Δv and A are unchanged.
+    sc.product_of_dv(ctx, diag);
     let released: u32 = sc
         .filter
         .par_chunks_mut(PARTICLES_PER_TASK)
         .zip(sc.rhs.par_chunks_mut(PARTICLES_PER_TASK))
         .zip(sc.friction.par_chunks(PARTICLES_PER_TASK))
-        .zip(q.par_chunks(PARTICLES_PER_TASK))
+        .zip(sc.q.par_chunks(PARTICLES_PER_TASK))
         .map(|(((filter, rhs), friction), aq)| {
             let mut count = 0;
             for (((f, b), fr), aq) in filter.iter_mut().zip(rhs).zip(friction).zip(aq) {
@@ -910,7 +914,6 @@ pub(super) fn substep(
             count
         })
         .sum();
-    sc.q = q;
     if released > 0 && iterations < settings.max_iterations {
         let cap = settings.max_iterations - iterations;
         let (more, d, d0) = sc.pcg(ctx, diag, floor, settings.tolerance, cap);

@@ -456,9 +456,17 @@ impl GridScratch {
         }
     }
 
+    /// `self.q = A·Δv` (unfiltered) for the Δv in `self.dv`.
+    fn product_of_dv(&mut self, kernel: Kernel, rows: usize, cols: usize, mass: &[f32], diag: f32) {
+        let mut q = std::mem::take(&mut self.q);
+        let dv = std::mem::take(&mut self.dv);
+        self.multiply(kernel, rows, cols, mass, diag, &dv, &mut q, false);
+        (self.q, self.dv) = (q, dv);
+    }
+
     /// Modified PCG (Baraff & Witkin 1998, §5.3) on the filters in `self.kind` and
-    /// `self.normal`, from the Δv in `self.dv`, as on the reference path; returns the
-    /// iterations, δ and δ0.
+    /// `self.normal`, from the Δv in `self.dv` with its product A·Δv in `self.q`
+    /// ([`Self::product_of_dv`]), as on the reference path; returns the iterations, δ and δ0.
     #[allow(clippy::too_many_arguments)]
     fn pcg(
         &mut self,
@@ -496,9 +504,6 @@ impl GridScratch {
         let delta0 = reduce(&self.dots, &mut self.partial).max(floor);
         // r = filter(b − A·Δv), c = filter(P·r), δ = r·c.
         let mut q = std::mem::take(&mut self.q);
-        let dv = std::mem::take(&mut self.dv);
-        self.multiply(kernel, rows, cols, mass, diag, &dv, &mut q, false);
-        self.dv = dv;
         {
             let (kind, normal) = (&self.kind, &self.normal);
             chunks3(&mut self.r, k)
@@ -1105,6 +1110,7 @@ pub(super) fn substep(
 
     // 3. Modified PCG (Baraff & Witkin 1998, §5.3), as on the reference path.
     let mass = &ctx.particles.mass;
+    sc.product_of_dv(kernel, rows, cols, mass, diag);
     let (mut iterations, mut delta, mut delta0) = sc.pcg(
         kernel,
         rows,
@@ -1117,19 +1123,16 @@ pub(super) fn substep(
     );
 
     // 4. The contacts that pull their particle in are released and the solve runs again, once
-    // (as on the reference path).
+    // (as on the reference path), from this product: Δv and A are unchanged.
     let k = PARTICLES_PER_TASK;
-    let mut q = std::mem::take(&mut sc.q);
-    let dv = std::mem::take(&mut sc.dv);
-    sc.multiply(kernel, rows, cols, mass, diag, &dv, &mut q, false);
-    sc.dv = dv;
+    sc.product_of_dv(kernel, rows, cols, mass, diag);
     let released: u32 = sc
         .kind
         .par_chunks_mut(k)
         .zip(chunks3(&mut sc.normal, k))
         .zip(chunks3(&mut sc.rhs, k))
         .zip(chunks3_ref(&sc.friction, k))
-        .zip(chunks3_ref(&q, k))
+        .zip(chunks3_ref(&sc.q, k))
         .map(|((((kind, mut normal), mut rhs), friction), aq)| {
             let mut count = 0;
             for (j, kind) in kind.iter_mut().enumerate() {
@@ -1154,7 +1157,6 @@ pub(super) fn substep(
             count
         })
         .sum();
-    sc.q = q;
     if released > 0 && iterations < settings.max_iterations {
         let cap = settings.max_iterations - iterations;
         let (more, d, d0) = sc.pcg(
