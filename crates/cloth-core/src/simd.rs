@@ -419,6 +419,14 @@ unsafe trait Lanes: Copy {
     unsafe fn short(len: Self, m: Self::Mask) -> bool;
     /// `cur` moved up by one lane, lane 0 from `prev`'s last.
     unsafe fn shift1(prev: Self, cur: Self) -> Self;
+    /// Lanes where `a > b` (false for NaN).
+    unsafe fn gt(a: Self, b: Self) -> Self::Mask;
+    /// Lanes where `a >= b` (false for NaN).
+    unsafe fn ge(a: Self, b: Self) -> Self::Mask;
+    /// Lanes in both masks.
+    unsafe fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    /// Bitwise exclusive or (with `-0.0`: the negation).
+    unsafe fn xor(a: Self, b: Self) -> Self;
     /// `cur` moved up by two lanes, lanes 0 and 1 from `prev`'s last two.
     unsafe fn shift2(prev: Self, cur: Self) -> Self;
 }
@@ -495,6 +503,30 @@ unsafe impl Lanes for V16 {
     unsafe fn short(len: Self, m: Self::Mask) -> bool {
         use std::arch::x86_64::{_CMP_LE_OQ, _mm512_cmp_ps_mask, _mm512_setzero_ps};
         unsafe { _mm512_cmp_ps_mask::<_CMP_LE_OQ>(len.0, _mm512_setzero_ps()) & m != 0 }
+    }
+    #[inline(always)]
+    unsafe fn gt(a: Self, b: Self) -> Self::Mask {
+        use std::arch::x86_64::{_CMP_GT_OQ, _mm512_cmp_ps_mask};
+        unsafe { _mm512_cmp_ps_mask::<_CMP_GT_OQ>(a.0, b.0) }
+    }
+    #[inline(always)]
+    unsafe fn ge(a: Self, b: Self) -> Self::Mask {
+        use std::arch::x86_64::{_CMP_GE_OQ, _mm512_cmp_ps_mask};
+        unsafe { _mm512_cmp_ps_mask::<_CMP_GE_OQ>(a.0, b.0) }
+    }
+    #[inline(always)]
+    unsafe fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        a & b
+    }
+    #[inline(always)]
+    unsafe fn xor(a: Self, b: Self) -> Self {
+        use std::arch::x86_64::{_mm512_castps_si512, _mm512_castsi512_ps, _mm512_xor_si512};
+        Self(unsafe {
+            _mm512_castsi512_ps(_mm512_xor_si512(
+                _mm512_castps_si512(a.0),
+                _mm512_castps_si512(b.0),
+            ))
+        })
     }
     #[inline(always)]
     unsafe fn shift1(prev: Self, cur: Self) -> Self {
@@ -599,6 +631,24 @@ unsafe impl Lanes for V8 {
             let le = _mm256_cmp_ps::<_CMP_LE_OQ>(len.0, _mm256_setzero_ps());
             _mm256_movemask_ps(_mm256_and_ps(le, _mm256_castsi256_ps(m))) != 0
         }
+    }
+    #[inline(always)]
+    unsafe fn gt(a: Self, b: Self) -> Self::Mask {
+        use std::arch::x86_64::{_CMP_GT_OQ, _mm256_castps_si256, _mm256_cmp_ps};
+        unsafe { _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GT_OQ>(a.0, b.0)) }
+    }
+    #[inline(always)]
+    unsafe fn ge(a: Self, b: Self) -> Self::Mask {
+        use std::arch::x86_64::{_CMP_GE_OQ, _mm256_castps_si256, _mm256_cmp_ps};
+        unsafe { _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(a.0, b.0)) }
+    }
+    #[inline(always)]
+    unsafe fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        unsafe { std::arch::x86_64::_mm256_and_si256(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn xor(a: Self, b: Self) -> Self {
+        Self(unsafe { std::arch::x86_64::_mm256_xor_ps(a.0, b.0) })
     }
     #[inline(always)]
     unsafe fn shift1(prev: Self, cur: Self) -> Self {
@@ -1578,23 +1628,348 @@ pub(crate) fn prefetch(v: &[f32], level: Level) {
 /// Whether `kernel` solves two blocks of chains together ([`chains::solve`] with `N = 2`, the
 /// two blocks' recurrences interleaved). With AVX-512's 32 vector registers both blocks'
 /// recurrences stay in registers (the 256² drape's chain kernel took 6 % fewer samples);
-/// with AVX2's 16 they spill (24 % more), and the portable kernel has fewer still. The same
-/// bits either way.
+/// with AVX2's 16 the generic solve spilled (24 % more), and AVX2's [`chains_lanes`] (8 lanes
+/// per part) was no faster with pairs on a Zen 3 (the 256² drape, 1 thread, 3 rounds within
+/// the noise). The portable kernel has fewer registers still. The same bits either way.
 pub(crate) fn chains_interleaved(kernel: Kernel) -> bool {
     kernel == Kernel::Avx512
 }
 
-dispatched! {
-    /// `N` blocks of XPBD's chain solves ([`chains::solve`] at [`chains::LANES`] lanes), with
-    /// `kernel` (the stepping thread's choice, passed on to the pool's workers).
-    fn xpbd_chains / chains_avx2 / chains_avx512 <const N: usize>(
-        blocks: [chains::Block<'_>; N],
-        len: usize,
-        alpha: f32,
-        gamma: f32,
-        keep: bool,
-        ahead: Option<&chains::Ahead<'_>>,
-    ) = chains::solve_lanes;
+/// `N` blocks of XPBD's chain solves ([`chains::solve`] at [`chains::LANES`] lanes), with
+/// `kernel` (the stepping thread's choice, passed on to the pool's workers). AVX2 runs
+/// [`chains_lanes`] (each step of a block as two 8-lane halves, written with intrinsics);
+/// the others the generic solve. The same bits on every kernel.
+pub(crate) fn xpbd_chains<const N: usize>(
+    kernel: Kernel,
+    blocks: [chains::Block<'_>; N],
+    len: usize,
+    alpha: f32,
+    gamma: f32,
+    keep: bool,
+    ahead: Option<&chains::Ahead<'_>>,
+) {
+    match kernel {
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx512 if Kernel::Avx512.is_available() => {
+            // SAFETY: the CPU has every feature the AVX-512 copy is compiled with (checked on
+            // the line above).
+            unsafe { chains_avx512(blocks, len, alpha, gamma, keep, ahead) }
+        }
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 if Kernel::Avx2.is_available() => {
+            // SAFETY: the CPU has every feature the AVX2 copy is compiled with (checked on
+            // the line above).
+            unsafe { chains_avx2(blocks, len, alpha, gamma, keep, ahead) }
+        }
+        _ => chains::solve_lanes(blocks, len, alpha, gamma, keep, ahead),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn chains_avx2<const N: usize>(
+    blocks: [chains::Block<'_>; N],
+    len: usize,
+    alpha: f32,
+    gamma: f32,
+    keep: bool,
+    ahead: Option<&chains::Ahead<'_>>,
+) {
+    align_frame();
+    // SAFETY: compiled with AVX2 (the lanes' operations need no more).
+    unsafe { chains_lanes::<V8, N>(blocks, len, alpha, gamma, keep, ahead) }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+fn chains_avx512<const N: usize>(
+    blocks: [chains::Block<'_>; N],
+    len: usize,
+    alpha: f32,
+    gamma: f32,
+    keep: bool,
+    ahead: Option<&chains::Ahead<'_>>,
+) {
+    align_frame();
+    chains::solve_lanes(blocks, len, alpha, gamma, keep, ahead);
+}
+
+/// Raw pointers to a block's arrays of chains ([`chains_lanes`]).
+#[cfg(target_arch = "x86_64")]
+struct ChainPtrs {
+    x: [*mut f32; 3],
+    prev: [*const f32; 3],
+    w: *const f32,
+    rest: *const f32,
+    lambda: *mut f32,
+    n: [*mut f32; 3],
+    cp: *mut f32,
+    dp: *mut f32,
+}
+
+/// The numbers every step of [`chains_lanes`] reads, in every lane.
+#[cfg(target_arch = "x86_64")]
+struct ChainConsts<V> {
+    g1: V,
+    alpha: V,
+    gamma: V,
+    zero: V,
+    one: V,
+    minus: V,
+    keep: bool,
+}
+
+/// Spring k (entry `e`, its particles `e` and `e + LANES`) from its predecessor's direction:
+/// writes its direction and gives its coupling, right-hand side and diagonal (the generic
+/// solve's `spring!`).
+///
+/// # Safety
+/// As [`Lanes`]; entries `e ..= e + LANES + N − 1` inside the block's arrays.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn chain_spring<V: Lanes>(
+    p: &ChainPtrs,
+    k: &ChainConsts<V>,
+    e: usize,
+    n_prev: [V; 3],
+) -> (V, V, V) {
+    const L: usize = chains::LANES;
+    unsafe {
+        let (a, b) = (e, e + L);
+        let (xa, xb) = (V::load(p.x[0].add(a)), V::load(p.x[0].add(b)));
+        let (ya, yb) = (V::load(p.x[1].add(a)), V::load(p.x[1].add(b)));
+        let (za, zb) = (V::load(p.x[2].add(a)), V::load(p.x[2].add(b)));
+        let (dx, dy, dz) = (V::sub(xb, xa), V::sub(yb, ya), V::sub(zb, za));
+        let length = V::sqrt(V::add(
+            V::add(V::mul(dx, dx), V::mul(dy, dy)),
+            V::mul(dz, dz),
+        ));
+        let (wa, wb) = (V::load(p.w.add(a)), V::load(p.w.add(b)));
+        let ws = V::add(wa, wb);
+        let rest = V::load(p.rest.add(e));
+        let active = V::and(
+            V::and(V::gt(length, k.zero), V::gt(ws, k.zero)),
+            V::ge(rest, k.zero),
+        );
+        let inv = V::div(k.one, length);
+        let (ux, uy, uz) = (
+            V::select(active, V::mul(dx, inv), k.zero),
+            V::select(active, V::mul(dy, inv), k.zero),
+            V::select(active, V::mul(dz, inv), k.zero),
+        );
+        // (x_b − x_b,prev) − (x_a − x_a,prev), per component.
+        let [px, py, pz] = p.prev;
+        let vx = V::sub(
+            V::sub(xb, V::load(px.add(b))),
+            V::sub(xa, V::load(px.add(a))),
+        );
+        let vy = V::sub(
+            V::sub(yb, V::load(py.add(b))),
+            V::sub(ya, V::load(py.add(a))),
+        );
+        let vz = V::sub(
+            V::sub(zb, V::load(pz.add(b))),
+            V::sub(za, V::load(pz.add(a))),
+        );
+        let rate = V::add(V::add(V::mul(ux, vx), V::mul(uy, vy)), V::mul(uz, vz));
+        let constraint = V::sub(length, rest);
+        let diag = V::select(active, V::add(V::mul(k.g1, ws), k.alpha), k.one);
+        let lam = if k.keep {
+            V::load(p.lambda.add(e))
+        } else {
+            k.zero
+        };
+        let rhs = V::select(
+            active,
+            V::sub(
+                V::sub(V::xor(constraint, k.minus), V::mul(k.alpha, lam)),
+                V::mul(k.gamma, rate),
+            ),
+            k.zero,
+        );
+        let cos = V::add(
+            V::add(V::mul(n_prev[0], ux), V::mul(n_prev[1], uy)),
+            V::mul(n_prev[2], uz),
+        );
+        let coupling = V::mul(V::xor(V::mul(k.g1, wa), k.minus), cos);
+        V::store(p.n[0].add(e), ux);
+        V::store(p.n[1].add(e), uy);
+        V::store(p.n[2].add(e), uz);
+        (coupling, rhs, diag)
+    }
+}
+
+/// The elimination's step at entry `e` (the generic solve's `eliminate!`).
+///
+/// # Safety
+/// As [`chain_spring`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn chain_eliminate<V: Lanes>(
+    p: &ChainPtrs,
+    k: &ChainConsts<V>,
+    e: usize,
+    (ek, rhs, diag): (V, V, V),
+    m_prev: V,
+    dp_prev: V,
+) {
+    const L: usize = chains::LANES;
+    unsafe {
+        let c = V::mul(ek, m_prev);
+        let r = V::div(k.one, V::sub(diag, V::mul(ek, c)));
+        let d = V::mul(V::sub(rhs, V::mul(ek, dp_prev)), r);
+        V::store(p.dp.add(e), d);
+        if e >= L {
+            V::store(p.cp.add(e - L), c);
+        }
+        V::store(p.cp.add(e), r);
+    }
+}
+
+/// [`chains::solve`] with explicit vectors of `V::N` lanes: each step of a block of
+/// [`chains::LANES`] chains runs as `LANES / V::N` parts of `V::N` lanes, one after the other.
+/// The generic solve's 16-lane arrays took two AVX2 registers per value, and its steps
+/// spilled to the stack; here a part's spring and elimination stay in registers (the 256²
+/// drape 10 % faster on one thread of a Zen 3). Every lane runs the generic solve's IEEE
+/// operations in its order (no fused multiply-add, the same selects), so the same bits
+/// (`tests/xpbd_chains.rs` compares every kernel with the reference path).
+///
+/// # Safety
+/// Only from a function compiled with `V`'s instruction set (see [`Lanes`]).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+#[allow(clippy::too_many_lines)]
+unsafe fn chains_lanes<V: Lanes, const N: usize>(
+    blocks: [chains::Block<'_>; N],
+    len: usize,
+    alpha: f32,
+    gamma: f32,
+    keep: bool,
+    ahead: Option<&chains::Ahead<'_>>,
+) {
+    const L: usize = chains::LANES;
+    assert!(len >= 2 && L.is_multiple_of(V::N));
+    let parts = L / V::N;
+    let size = len * L;
+    // Raw pointers to each block's arrays (checked to hold `len` steps of `L` lanes).
+    let ptrs = blocks.map(|b| {
+        for a in b.x.iter().map(|a| &**a).chain(b.prev).chain([b.w, b.rest]) {
+            assert!(
+                a.len() >= size,
+                "a chain block array shorter than its chains"
+            );
+        }
+        for a in b.n.iter().chain([&b.cp, &b.dp]) {
+            assert!(
+                a.len() >= size,
+                "a chain scratch array shorter than its chains"
+            );
+        }
+        assert!(!keep || b.lambda.len() >= size);
+        let [x0, x1, x2] = b.x;
+        let [n0, n1, n2] = b.n;
+        ChainPtrs {
+            x: [x0.as_mut_ptr(), x1.as_mut_ptr(), x2.as_mut_ptr()],
+            prev: b.prev.map(<[f32]>::as_ptr),
+            w: b.w.as_ptr(),
+            rest: b.rest.as_ptr(),
+            lambda: b.lambda.as_mut_ptr(),
+            n: [n0.as_mut_ptr(), n1.as_mut_ptr(), n2.as_mut_ptr()],
+            cp: b.cp.as_mut_ptr(),
+            dp: b.dp.as_mut_ptr(),
+        }
+    });
+    // SAFETY (of every vector operation below): compiled with `V`'s instruction set (the
+    // contract); every entry read or written is below `len · L` (asserted above).
+    unsafe {
+        let g1 = 1.0 + gamma;
+        let (g1v, alphav, gammav) = (V::splat(g1), V::splat(alpha), V::splat(gamma));
+        let (zero, one, minus) = (V::splat(0.0), V::splat(1.0), V::splat(-0.0));
+        let c = ChainConsts {
+            g1: g1v,
+            alpha: alphav,
+            gamma: gammav,
+            zero,
+            one,
+            minus,
+            keep,
+        };
+        for p in &ptrs {
+            for h in 0..parts {
+                let e = h * V::N;
+                let s = chain_spring::<V>(p, &c, e, [zero; 3]);
+                chain_eliminate::<V>(p, &c, e, s, one, zero);
+            }
+        }
+        if let Some(ahead) = ahead {
+            ahead.row(0);
+            ahead.row(len - 1);
+        }
+        for k in 1..len - 1 {
+            if let Some(ahead) = ahead {
+                ahead.row(k);
+            }
+            for p in &ptrs {
+                for h in 0..parts {
+                    let e = k * L + h * V::N;
+                    let q = e - L;
+                    let n_prev = [
+                        V::load(p.n[0].add(q)),
+                        V::load(p.n[1].add(q)),
+                        V::load(p.n[2].add(q)),
+                    ];
+                    let s = chain_spring::<V>(p, &c, e, n_prev);
+                    chain_eliminate::<V>(p, &c, e, s, V::load(p.cp.add(q)), V::load(p.dp.add(q)));
+                }
+            }
+        }
+        for p in &ptrs {
+            for h in 0..parts {
+                let (last, before) = ((len - 1) * L + h * V::N, (len - 2) * L + h * V::N);
+                V::store(p.dp.add(last), zero);
+                for n in p.n {
+                    V::store(n.add(last), zero);
+                }
+                V::store(p.cp.add(before), zero);
+            }
+        }
+        // The back substitution.
+        for step in (0..len - 1).rev() {
+            for p in &ptrs {
+                for h in 0..parts {
+                    let k = step * L + h * V::N;
+                    let b = k + L;
+                    let dl_next = V::load(p.dp.add(b));
+                    let dl = V::sub(V::load(p.dp.add(k)), V::mul(V::load(p.cp.add(k)), dl_next));
+                    V::store(p.dp.add(k), dl);
+                    let wb = V::load(p.w.add(b));
+                    let (s, t) = (V::mul(wb, dl), V::mul(wb, dl_next));
+                    for c in 0..3 {
+                        let x = V::load(p.x[c].add(b));
+                        let moved = V::sub(
+                            V::mul(s, V::load(p.n[c].add(k))),
+                            V::mul(t, V::load(p.n[c].add(b))),
+                        );
+                        V::store(p.x[c].add(b), V::add(x, moved));
+                    }
+                    if keep {
+                        let lam = V::load(p.lambda.add(k));
+                        V::store(p.lambda.add(k), V::add(lam, dl));
+                    }
+                }
+            }
+        }
+        for p in &ptrs {
+            for h in 0..parts {
+                let e = h * V::N;
+                let t = V::mul(V::load(p.w.add(e)), V::load(p.dp.add(e)));
+                for c in 0..3 {
+                    let x = V::load(p.x[c].add(e));
+                    V::store(p.x[c].add(e), V::sub(x, V::mul(t, V::load(p.n[c].add(e)))));
+                }
+            }
+        }
+    }
 }
 
 dispatched! {
@@ -1783,6 +2158,71 @@ mod tests {
                         let got = dst[r * dst_stride + c];
                         assert_eq!(got, want, "{kernel:?} {src_stride}/{dst_stride} ({r}, {c})");
                     }
+                }
+            }
+        }
+    }
+
+    /// Every kernel's chain solve ([`xpbd_chains`]: the AVX2 kernel's intrinsics, the others'
+    /// generic code) writes the generic solve's bits into every array of a block: 16 chains
+    /// of 2 and of 37 particles, with the lanes the solve leaves out (a zero-length spring,
+    /// a spring between two pinned particles, one pinned end, a negative rest length), kept
+    /// and unused multipliers, one and three iterations. Tolerance: none (bits).
+    #[test]
+    fn every_kernels_chain_solve_gives_the_generic_bits() {
+        use crate::solver::chains::{self, Block, FIELDS, LANES, SCRATCH};
+        for len in [2, 37] {
+            let size = chains::stride(len);
+            let mut fields = vec![0.0_f32; FIELDS * size];
+            for k in 0..len {
+                for l in 0..LANES {
+                    let (t, c) = (k as f32, l as f32);
+                    let e = k * LANES + l;
+                    let x = [
+                        0.1 * t + 0.003 * c,
+                        0.02 * (t * 1.3 + c).sin(),
+                        0.015 * (t * 0.7 - c).cos(),
+                    ];
+                    for d in 0..3 {
+                        fields[d * size + e] = x[d];
+                        fields[(3 + d) * size + e] = x[d] - 0.001 * (t + c).sin();
+                    }
+                    fields[6 * size + e] = 1.0 + 0.1 * c;
+                    fields[7 * size + e] = 0.098 + 0.0005 * c;
+                    fields[8 * size + e] = 0.01 * (t - c).sin();
+                }
+            }
+            // Lane 1: a zero-length spring (particles 0 and 1 at the same place); lane 2: a
+            // spring between two pinned particles; lane 3: a pinned end; lane 4: a negative
+            // rest length (cut out of the chain).
+            for d in 0..3 {
+                fields[d * size + LANES + 1] = fields[d * size + 1];
+            }
+            fields[6 * size + 2] = 0.0;
+            fields[6 * size + LANES + 2] = 0.0;
+            fields[6 * size + 3] = 0.0;
+            fields[7 * size + 4] = -1.0;
+            for (keep, iterations) in [(false, 1), (true, 1), (true, 3)] {
+                let solve = |kernel: Option<Kernel>| {
+                    let (mut f, mut work) = (fields.clone(), vec![0.0_f32; SCRATCH * size]);
+                    for _ in 0..iterations {
+                        let block = [Block::split(&mut f, &mut work, size)];
+                        match kernel {
+                            Some(kernel) => xpbd_chains(kernel, block, len, 0.01, 0.05, keep, None),
+                            None => chains::solve_lanes(block, len, 0.01, 0.05, keep, None),
+                        }
+                    }
+                    f.iter()
+                        .chain(&work)
+                        .map(|v| v.to_bits())
+                        .collect::<Vec<u32>>()
+                };
+                let generic = solve(None);
+                for kernel in Kernel::ALL.into_iter().filter(|k| k.is_available()) {
+                    assert!(
+                        solve(Some(kernel)) == generic,
+                        "{kernel:?}: chains of {len}, keep {keep}, {iterations} iterations"
+                    );
                 }
             }
         }

@@ -47,7 +47,9 @@
 //! [`LANES`] chains laid out step-major (entry `(k, lane)` at `k·LANES + lane`), so every
 //! operation of the sweep runs across the lanes as one vector, two blocks at a time (their
 //! recurrences interleaved, [`solve`]); the reference path solves one chain at a time with the
-//! same function at one lane, hence the same bits.
+//! same function at one lane, hence the same bits. The AVX2 kernel runs the same operations
+//! written with intrinsics, each step of a block as two 8-lane halves
+//! (`simd::chains_lanes`: the 16-lane arrays took two registers per value and spilled).
 
 /// Chains per block on the grid path: the lanes of the vectorised sweeps.
 pub(crate) const LANES: usize = 16;
@@ -395,7 +397,7 @@ pub(crate) struct Ahead<'a> {
 
 impl Ahead<'_> {
     #[inline(always)]
-    fn row(&self, k: usize) {
+    pub(crate) fn row(&self, k: usize) {
         let at = self.first + k * self.stride;
         for field in self.fields.iter().flatten() {
             let Some(row) = field.get(at..at + self.span) else {
