@@ -187,7 +187,10 @@ fn align_frame() {
 /// baseline target. Both compiled copies start with [`align_frame`]. Written
 /// `dispatched! { /// docs  fn NAME / AVX2 / AVX512(args…) -> Ret = GENERIC; }`, with optional
 /// const parameters after the names (`fn NAME / AVX2 / AVX512 <const N: usize>(args…)`),
-/// which `GENERIC` infers from the arguments.
+/// which `GENERIC` infers from the arguments. `= GENERIC, avx2 = LANES;` runs instead, in the
+/// AVX2 copy, `LANES::<V8, consts…>(args…)`: a body written with the [`Lanes`] trait's
+/// intrinsics (an `unsafe fn` whose contract is to run compiled with its lanes' instruction
+/// set, which the AVX2 copy is).
 macro_rules! dispatched {
     (
         $(#[$attr:meta])*
@@ -195,8 +198,31 @@ macro_rules! dispatched {
             $(<$(const $c:ident: $cty:ty),*>)? ($($arg:ident: $ty:ty),* $(,)?)
             $(-> $ret:ty)? = $generic:path;
     ) => {
+        dispatched! {
+            @emit [$(#[$attr])*] $name $avx2 $avx512 [$($(const $c: $cty),*)?]
+            ($($arg: $ty),*) [$($ret)?] $generic { $generic($($arg),*) }
+        }
+    };
+    (
+        $(#[$attr:meta])*
+        fn $name:ident / $avx2:ident / $avx512:ident
+            $(<$(const $c:ident: $cty:ty),*>)? ($($arg:ident: $ty:ty),* $(,)?)
+            $(-> $ret:ty)? = $generic:path, avx2 = $lanes:ident;
+    ) => {
+        dispatched! {
+            @emit [$(#[$attr])*] $name $avx2 $avx512 [$($(const $c: $cty),*)?]
+            ($($arg: $ty),*) [$($ret)?] $generic {
+                // SAFETY: this copy is compiled with AVX2 (the lanes' operations need no more).
+                unsafe { $lanes::<V8 $($(, $c)*)?>($($arg),*) }
+            }
+        }
+    };
+    (
+        @emit [$(#[$attr:meta])*] $name:ident $avx2:ident $avx512:ident [$($gen:tt)*]
+        ($($arg:ident: $ty:ty),*) [$($ret:ty)?] $generic:path { $($avx2_body:tt)* }
+    ) => {
         $(#[$attr])*
-        pub(crate) fn $name$(<$(const $c: $cty),*>)?(kernel: Kernel, $($arg: $ty),*) $(-> $ret)? {
+        pub(crate) fn $name<$($gen)*>(kernel: Kernel, $($arg: $ty),*) $(-> $ret)? {
             match kernel {
                 #[cfg(target_arch = "x86_64")]
                 Kernel::Avx512 if Kernel::Avx512.is_available() => {
@@ -216,14 +242,14 @@ macro_rules! dispatched {
 
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx2,fma")]
-        fn $avx2$(<$(const $c: $cty),*>)?($($arg: $ty),*) $(-> $ret)? {
+        fn $avx2<$($gen)*>($($arg: $ty),*) $(-> $ret)? {
             align_frame();
-            $generic($($arg),*)
+            $($avx2_body)*
         }
 
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-        fn $avx512$(<$(const $c: $cty),*>)?($($arg: $ty),*) $(-> $ret)? {
+        fn $avx512<$($gen)*>($($arg: $ty),*) $(-> $ret)? {
             align_frame();
             $generic($($arg),*)
         }
@@ -1635,63 +1661,19 @@ pub(crate) fn chains_interleaved(kernel: Kernel) -> bool {
     kernel == Kernel::Avx512
 }
 
-/// `N` blocks of XPBD's chain solves ([`chains::solve`] at [`chains::LANES`] lanes), with
-/// `kernel` (the stepping thread's choice, passed on to the pool's workers). AVX2 runs
-/// [`chains_lanes`] (each step of a block as two 8-lane halves, written with intrinsics);
-/// the others the generic solve. The same bits on every kernel.
-pub(crate) fn xpbd_chains<const N: usize>(
-    kernel: Kernel,
-    blocks: [chains::Block<'_>; N],
-    len: usize,
-    alpha: f32,
-    gamma: f32,
-    keep: bool,
-    ahead: Option<&chains::Ahead<'_>>,
-) {
-    match kernel {
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512 if Kernel::Avx512.is_available() => {
-            // SAFETY: the CPU has every feature the AVX-512 copy is compiled with (checked on
-            // the line above).
-            unsafe { chains_avx512(blocks, len, alpha, gamma, keep, ahead) }
-        }
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 if Kernel::Avx2.is_available() => {
-            // SAFETY: the CPU has every feature the AVX2 copy is compiled with (checked on
-            // the line above).
-            unsafe { chains_avx2(blocks, len, alpha, gamma, keep, ahead) }
-        }
-        _ => chains::solve_lanes(blocks, len, alpha, gamma, keep, ahead),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn chains_avx2<const N: usize>(
-    blocks: [chains::Block<'_>; N],
-    len: usize,
-    alpha: f32,
-    gamma: f32,
-    keep: bool,
-    ahead: Option<&chains::Ahead<'_>>,
-) {
-    align_frame();
-    // SAFETY: compiled with AVX2 (the lanes' operations need no more).
-    unsafe { chains_lanes::<V8, N>(blocks, len, alpha, gamma, keep, ahead) }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-fn chains_avx512<const N: usize>(
-    blocks: [chains::Block<'_>; N],
-    len: usize,
-    alpha: f32,
-    gamma: f32,
-    keep: bool,
-    ahead: Option<&chains::Ahead<'_>>,
-) {
-    align_frame();
-    chains::solve_lanes(blocks, len, alpha, gamma, keep, ahead);
+dispatched! {
+    /// `N` blocks of XPBD's chain solves ([`chains::solve`] at [`chains::LANES`] lanes), with
+    /// `kernel` (the stepping thread's choice, passed on to the pool's workers). AVX2 runs
+    /// [`chains_lanes`] (each step of a block as two 8-lane halves, written with intrinsics);
+    /// the others the generic solve. The same bits on every kernel.
+    fn xpbd_chains / chains_avx2 / chains_avx512 <const N: usize>(
+        blocks: [chains::Block<'_>; N],
+        len: usize,
+        alpha: f32,
+        gamma: f32,
+        keep: bool,
+        ahead: Option<&chains::Ahead<'_>>,
+    ) = chains::solve_lanes, avx2 = chains_lanes;
 }
 
 /// Raw pointers to a block's arrays of chains ([`chains_lanes`]).
