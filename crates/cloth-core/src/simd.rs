@@ -11,18 +11,20 @@
 //!
 //! A few kernels are written with explicit intrinsics instead: the 16 × 16 tile transposes of
 //! the chain solves' blocks (`transpose16`), pure data movement (AVX shuffles; loads and
-//! stores through `bytemuck` casts of `[f32; 8]`, so without `unsafe`), and two AVX-512
-//! kernels of XPBD's grid path with the compiled loop's arithmetic in its order (the same
-//! bits): the horizontal bend's groups of four (`xpbd_quads`) and the vertical pairs with a
-//! masked last vector (`xpbd_pairs`), and the explicit integrators' fused row (`fused_row`): a
-//! grid row's six spring classes and its integration per chunk of 16 (AVX-512) or 8 (AVX2)
-//! particles in registers, one generic body over the small `Lanes` trait of vector
-//! operations, the compiled path's operations in their order (the same bits; about 1.5× the
-//! peer scene's throughput of the compiled AVX-512 band on the Zen 4 host).
+//! stores through `bytemuck` casts of `[f32; 8]`, so without `unsafe`), kernels of XPBD's
+//! grid path with the compiled loop's arithmetic in its order (the same bits): the horizontal
+//! bend's groups of four (`xpbd_quads`, AVX-512 and AVX2), the vertical pairs with a masked
+//! last vector (`xpbd_pairs`, AVX-512) and the AVX2 chain solve (`chains_lanes`), and the
+//! explicit integrators' fused row (`fused_row`): a grid row's six spring classes and its
+//! integration per chunk of 16 (AVX-512) or 8 (AVX2) particles in registers, one generic body
+//! over the small `Lanes` trait of vector operations, the compiled path's operations in their
+//! order (the same bits; about 1.5× the peer scene's throughput of the compiled AVX-512 band
+//! on the Zen 4 host).
 //!
 //! This is the crate's only module with `unsafe`: calling a `#[target_feature]` function,
 //! which is sound only on a CPU that has the features (every call is guarded), and the
-//! AVX-512 kernels' loads and stores (bounds asserted or taken from slices of known length).
+//! intrinsic kernels' loads and stores (bounds asserted or taken from slices of known
+//! length).
 #![allow(unsafe_code)]
 
 use std::cell::Cell;
@@ -1344,7 +1346,7 @@ pub(crate) fn xpbd_quads(
     m: usize,
 ) -> bool {
     #[cfg(target_arch = "x86_64")]
-    if kernel == Kernel::Avx512 && Kernel::Avx512.is_available() {
+    if matches!(kernel, Kernel::Avx512 | Kernel::Avx2) && kernel.is_available() {
         let Some(grid_xpbd::QuadsInput {
             prev,
             w,
@@ -1364,8 +1366,14 @@ pub(crate) fn xpbd_quads(
                 &mut z[first..][..n],
             ];
             let prev = prev.map(|p| &p[g..][..n]);
-            // SAFETY: the CPU has AVX-512 F (checked above).
-            unsafe { quads_avx512(pos, prev, &w[g..][..n], &rest[g..][..n], m - first, params) };
+            let (w, rest, m) = (&w[g..][..n], &rest[g..][..n], m - first);
+            if kernel == Kernel::Avx512 {
+                // SAFETY: the CPU has AVX-512 F (checked above).
+                unsafe { quads_avx512(pos, prev, w, rest, m, params) };
+            } else {
+                // SAFETY: the CPU has AVX2 and FMA (checked above).
+                unsafe { quads_avx2(pos, prev, w, rest, m, params) };
+            }
         }
         return true;
     }
@@ -1554,6 +1562,212 @@ fn quads_avx512(
             let b = _mm512_mask_blend_ps(pairs, b, _mm512_sub_ps(b, _mm512_mul_ps(wb, c)));
             store(v, at, k, a, b);
         }
+    }
+}
+
+/// `grid_xpbd::pair_correction` for compliant pairs on the lanes `V`, its operations in its
+/// order (the same bits): from the ends' positions `(a, b)` and start positions `(pa, pb)`,
+/// `wsum = w_a + w_b`, the rest lengths and the multipliers, the pairs' `l = a − b`, the
+/// factor `s` (zero where a pair does not move: both ends pinned, or zero length) and `|l|`.
+/// Used by [`quads_avx2`] (the AVX-512 kernels have [`pair_lanes`]).
+///
+/// # Safety
+/// As [`Lanes`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn pair_factor<V: Lanes>(
+    (a, b): ([V; 3], [V; 3]),
+    (pa, pb): ([V; 3], [V; 3]),
+    wsum: V,
+    rest: V,
+    lambda: V,
+    (alpha, gamma): (f32, f32),
+) -> ([V; 3], V, V) {
+    unsafe {
+        let zero = V::splat(0.0);
+        let (alpha_v, gamma_v) = (V::splat(alpha), V::splat(gamma));
+        let l = [V::sub(a[0], b[0]), V::sub(a[1], b[1]), V::sub(a[2], b[2])];
+        let d = [
+            V::sub(V::sub(a[0], pa[0]), V::sub(b[0], pb[0])),
+            V::sub(V::sub(a[1], pa[1]), V::sub(b[1], pb[1])),
+            V::sub(V::sub(a[2], pa[2]), V::sub(b[2], pb[2])),
+        ];
+        let len2 = V::add(
+            V::add(V::mul(l[0], l[0]), V::mul(l[1], l[1])),
+            V::mul(l[2], l[2]),
+        );
+        let len = V::sqrt(len2);
+        let ok = V::and(V::gt(wsum, zero), V::gt(len, zero));
+        let constraint = V::sub(len, rest);
+        let ld = V::add(
+            V::add(V::mul(l[0], d[0]), V::mul(l[1], d[1])),
+            V::mul(l[2], d[2]),
+        );
+        // s = ((−C − α̃·λ)·|l| − γ·(l·d)) / (((1 + γ)·wsum + α̃)·|l|²), +0 where not `ok`
+        // (the scalar code's mask of the bits); −C as a flip of the sign bit, as `-x` is.
+        let num = V::sub(
+            V::mul(
+                V::sub(V::xor(constraint, V::splat(-0.0)), V::mul(alpha_v, lambda)),
+                len,
+            ),
+            V::mul(gamma_v, ld),
+        );
+        let den = V::mul(V::add(V::mul(V::splat(1.0 + gamma), wsum), alpha_v), len2);
+        (l, V::select(ok, V::div(num, den), zero), len)
+    }
+}
+
+/// 8 floats of `v` from `i`: plainly for a whole vector, else the `live` lanes (zero in the
+/// others, which are not read).
+///
+/// # Safety
+/// As [`Lanes`]; `i + 8 <= v.len()` when `whole`, else `live` keeps only lanes inside `v`.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn lanes_at(v: &[f32], i: usize, whole: bool, live: <V8 as Lanes>::Mask) -> V8 {
+    unsafe {
+        if whole {
+            V8::load(v.as_ptr().add(i))
+        } else {
+            // (A span's second half may start past `v`: no lane of it is read then.)
+            V8::load_masked(live, v.as_ptr().wrapping_add(i))
+        }
+    }
+}
+
+/// Writes 8 floats of `v` from `i`: plainly for a whole vector, else the `live` lanes only.
+///
+/// # Safety
+/// As [`lanes_at`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn put_lanes(v: &mut [f32], i: usize, whole: bool, live: <V8 as Lanes>::Mask, x: V8) {
+    unsafe {
+        if whole {
+            V8::store(v.as_mut_ptr().add(i), x);
+        } else {
+            V8::store_masked(v.as_mut_ptr().wrapping_add(i), live, x);
+        }
+    }
+}
+
+/// [`xpbd_quads`]' AVX2 kernel: spans of 16 columns (four groups of four) as two vectors per
+/// field, the groups' columns 0, 1 (lanes `a`) and 2, 3 (lanes `b`) split apart by one
+/// in-lane shuffle each (`vshufps`: lanes `a` hold columns 0, 1, 8, 9, 4, 5, 12, 13 of the
+/// span, lanes `b` two further), one pair per lane; the last span by masked loads and stores
+/// (only the row's columns), its lanes past the row's pairs computed on zeros and left as they
+/// were. Every row slice starts at the colour's first column and holds `m + 2` entries. The
+/// masked row it replaces computes every slot and keeps half.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn quads_avx2(
+    [x, y, z]: [&mut [f32]; 3],
+    [px, py, pz]: [&[f32]; 3],
+    w: &[f32],
+    rest: &[f32],
+    m: usize,
+    params: (f32, f32),
+) {
+    use std::arch::x86_64::{_mm256_cmpgt_epi32, _mm256_set1_epi32, _mm256_setr_epi32};
+    const SPAN: usize = 16;
+    align_frame();
+    let n = m + 2;
+    // Every slice holds at least `n` entries (checked here once: the loads and stores below
+    // touch the span's columns below `n` only, plainly for a whole span, else by masks).
+    for v in [&x[..], &y[..], &z[..], px, py, pz, w, rest] {
+        assert!(v.len() >= n, "a row shorter than its span");
+    }
+    // SAFETY: compiled with AVX2 (`V8`'s operations need no more); every access stays below
+    // `n` (asserted above).
+    unsafe {
+        let zero = V8::splat(0.0);
+        // The span's columns of lanes `a` (the pairs' first ends).
+        let columns_a = _mm256_setr_epi32(0, 1, 8, 9, 4, 5, 12, 13);
+        let mut at = 0;
+        while at < n {
+            let whole = at + SPAN <= n;
+            let k = (V8::first(at, n), V8::first(at + 8, n));
+            // The span's pairs `(i, i + 2)` with `i < m` (every pair of a whole span).
+            let ahead = i32::try_from(m.saturating_sub(at).min(SPAN)).unwrap_or(0);
+            let pairs = _mm256_cmpgt_epi32(_mm256_set1_epi32(ahead), columns_a);
+            let (xa, xb) = span_at(x, at, whole, k);
+            let (ya, yb) = span_at(y, at, whole, k);
+            let (za, zb) = span_at(z, at, whole, k);
+            let (pxa, pxb) = span_at(px, at, whole, k);
+            let (pya, pyb) = span_at(py, at, whole, k);
+            let (pza, pzb) = span_at(pz, at, whole, k);
+            let (wa, wb) = span_at(w, at, whole, k);
+            // Rest lengths by slot: the first ends' lanes only.
+            let (ra, _) = span_at(rest, at, whole, k);
+            let (l, f, _) = pair_factor(
+                ([xa, ya, za], [xb, yb, zb]),
+                ([pxa, pya, pza], [pxb, pyb, pzb]),
+                V8::add(wa, wb),
+                ra,
+                zero,
+                params,
+            );
+            for (v, (a, b), l) in [
+                (&mut *x, (xa, xb), l[0]),
+                (&mut *y, (ya, yb), l[1]),
+                (&mut *z, (za, zb), l[2]),
+            ] {
+                let c = V8::mul(f, l);
+                // Ends of the span's pairs past `m` keep their values (bit for bit: adding a
+                // zero correction would turn −0 into +0).
+                let a = V8::select(pairs, V8::add(a, V8::mul(wa, c)), a);
+                let b = V8::select(pairs, V8::sub(b, V8::mul(wb, c)), b);
+                put_span(v, at, whole, k, (a, b));
+            }
+            at += SPAN;
+        }
+    }
+}
+
+/// The span of 16 columns of `v` from `at`, split into the groups' columns 0, 1 (lanes `a`)
+/// and 2, 3 (lanes `b`) as [`quads_avx2`] lays them out: plainly for a whole span, else the
+/// halves' `k` lanes (zero elsewhere, not read).
+///
+/// # Safety
+/// As [`Lanes`]; `at + 16 <= v.len()` when `whole`, else `k` keeps only lanes inside `v`.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn span_at(
+    v: &[f32],
+    at: usize,
+    whole: bool,
+    (k0, k1): (<V8 as Lanes>::Mask, <V8 as Lanes>::Mask),
+) -> (V8, V8) {
+    use std::arch::x86_64::_mm256_shuffle_ps;
+    unsafe {
+        let (v0, v1) = (lanes_at(v, at, whole, k0), lanes_at(v, at + 8, whole, k1));
+        // Per 128-bit half: two floats of `v0`, then the same two of `v1`.
+        (
+            V8(_mm256_shuffle_ps::<0x44>(v0.0, v1.0)),
+            V8(_mm256_shuffle_ps::<0xEE>(v0.0, v1.0)),
+        )
+    }
+}
+
+/// Writes back a span that [`span_at`] split: its columns below `n` only (the masks `k`).
+///
+/// # Safety
+/// As [`span_at`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn put_span(
+    v: &mut [f32],
+    at: usize,
+    whole: bool,
+    (k0, k1): (<V8 as Lanes>::Mask, <V8 as Lanes>::Mask),
+    (a, b): (V8, V8),
+) {
+    use std::arch::x86_64::_mm256_shuffle_ps;
+    unsafe {
+        let v0 = V8(_mm256_shuffle_ps::<0x44>(a.0, b.0));
+        let v1 = V8(_mm256_shuffle_ps::<0xEE>(a.0, b.0));
+        put_lanes(v, at, whole, k0, v0);
+        put_lanes(v, at + 8, whole, k1, v1);
     }
 }
 

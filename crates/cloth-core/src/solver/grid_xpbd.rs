@@ -2815,12 +2815,12 @@ mod tests {
     use crate::simd::Kernel;
 
     /// A pass at spacing 2 computed only on its colour's pairs ([`crate::simd::xpbd_quads`],
-    /// AVX-512) gives the masked row's bits ([`row`], every slot computed, half kept), on rows
-    /// of every length around the kernel's 32-column spans (the last span masked), both
-    /// colours, with pinned particles (zero inverse mass) and coincident ends (zero length)
-    /// among them; so does the same arithmetic in scalar form ([`quads_scalar`], on every
-    /// CPU). Tolerance: none. On a CPU without AVX-512 the quads must decline
-    /// (the caller then takes the row).
+    /// AVX-512 and AVX2) gives the masked row's bits ([`row`], every slot computed, half
+    /// kept), on rows of every length around the kernels' 32- and 16-column spans (the last
+    /// span masked), both colours, with pinned particles (zero inverse mass) and coincident
+    /// ends (zero length) among them; so does the same arithmetic in scalar form
+    /// ([`quads_scalar`], on every CPU). Tolerance: none. On a CPU without the kernel's
+    /// instruction set the quads must decline (the caller then takes the row).
     #[test]
     fn quads_give_the_masked_rows_bits() {
         let mut seed = 0x2545_f491_u32;
@@ -2830,7 +2830,9 @@ mod tests {
             seed ^= seed << 5;
             f32::from_bits(0x3f80_0000 | (seed >> 9)) - 1.5
         };
-        for cols in [3, 4, 5, 31, 32, 33, 34, 35, 36, 63, 66, 67, 97, 130] {
+        for cols in [
+            3, 4, 5, 15, 16, 17, 18, 19, 20, 25, 31, 32, 33, 34, 35, 36, 63, 66, 67, 97, 130,
+        ] {
             let placed = |v: Vec<f32>| {
                 let mut p = Placed::default();
                 p.reset(v.len(), 0);
@@ -2915,22 +2917,27 @@ mod tests {
                         "{cols} columns: nothing moved"
                     );
                 }
-                let mut quads = pos.clone().map(|p| p.to_vec());
-                let [x, y, z] = &mut quads;
-                let ran =
-                    crate::simd::xpbd_quads(Kernel::Avx512, [x, y, z], &shared, 0, 2 * colour, m);
-                assert_eq!(ran, Kernel::Avx512.is_available(), "{cols} columns");
-                if !ran {
-                    continue;
-                }
-                assert_eq!(
-                    bits(&quads),
-                    bits(&masked),
-                    "{cols} columns, colour {colour}"
-                );
-                if 2 * colour < m {
-                    let before = pos.clone().map(|p| p.to_vec());
-                    assert_ne!(bits(&quads), bits(&before), "{cols} columns: nothing moved");
+                for kernel in [Kernel::Avx512, Kernel::Avx2] {
+                    let mut quads = pos.clone().map(|p| p.to_vec());
+                    let [x, y, z] = &mut quads;
+                    let ran = crate::simd::xpbd_quads(kernel, [x, y, z], &shared, 0, 2 * colour, m);
+                    assert_eq!(ran, kernel.is_available(), "{kernel:?}, {cols} columns");
+                    if !ran {
+                        continue;
+                    }
+                    assert_eq!(
+                        bits(&quads),
+                        bits(&masked),
+                        "{kernel:?}, {cols} columns, colour {colour}"
+                    );
+                    if 2 * colour < m {
+                        let before = pos.clone().map(|p| p.to_vec());
+                        assert_ne!(
+                            bits(&quads),
+                            bits(&before),
+                            "{kernel:?}, {cols} columns: nothing moved"
+                        );
+                    }
                 }
             }
         }
