@@ -1565,11 +1565,12 @@ fn quads_avx512(
     }
 }
 
-/// `grid_xpbd::pair_correction` for compliant pairs on the lanes `V`, its operations in its
-/// order (the same bits): from the ends' positions `(a, b)` and start positions `(pa, pb)`,
-/// `wsum = w_a + w_b`, the rest lengths and the multipliers, the pairs' `l = a − b`, the
-/// factor `s` (zero where a pair does not move: both ends pinned, or zero length) and `|l|`.
-/// Used by [`quads_avx2`] (the AVX-512 kernels have [`pair_lanes`]).
+/// `grid_xpbd::pair_correction` for compliant pairs without kept multipliers (`λ = 0`, as
+/// the quads run) on the lanes `V`, its operations in its order (the same bits): from the
+/// ends' positions `(a, b)` and start positions `(pa, pb)`, `wsum = w_a + w_b` and the rest
+/// lengths, the pairs' `l = a − b` and the factor `s` (zero where a pair does not move: both
+/// ends pinned, or zero length). Used by [`quads_avx2`] (the AVX-512 kernels have
+/// [`pair_lanes`]).
 ///
 /// # Safety
 /// As [`Lanes`].
@@ -1580,9 +1581,8 @@ unsafe fn pair_factor<V: Lanes>(
     (pa, pb): ([V; 3], [V; 3]),
     wsum: V,
     rest: V,
-    lambda: V,
     (alpha, gamma): (f32, f32),
-) -> ([V; 3], V, V) {
+) -> ([V; 3], V) {
     unsafe {
         let zero = V::splat(0.0);
         let (alpha_v, gamma_v) = (V::splat(alpha), V::splat(gamma));
@@ -1603,17 +1603,18 @@ unsafe fn pair_factor<V: Lanes>(
             V::add(V::mul(l[0], d[0]), V::mul(l[1], d[1])),
             V::mul(l[2], d[2]),
         );
-        // s = ((−C − α̃·λ)·|l| − γ·(l·d)) / (((1 + γ)·wsum + α̃)·|l|²), +0 where not `ok`
-        // (the scalar code's mask of the bits); −C as a flip of the sign bit, as `-x` is.
+        // s = ((−C − α̃·λ)·|l| − γ·(l·d)) / (((1 + γ)·wsum + α̃)·|l|²) with λ = 0, its
+        // product α̃·0 still subtracted as the scalar code does; +0 where not `ok` (the
+        // scalar code's mask of the bits); −C as a flip of the sign bit, as `-x` is.
         let num = V::sub(
             V::mul(
-                V::sub(V::xor(constraint, V::splat(-0.0)), V::mul(alpha_v, lambda)),
+                V::sub(V::xor(constraint, V::splat(-0.0)), V::mul(alpha_v, zero)),
                 len,
             ),
             V::mul(gamma_v, ld),
         );
         let den = V::mul(V::add(V::mul(V::splat(1.0 + gamma), wsum), alpha_v), len2);
-        (l, V::select(ok, V::div(num, den), zero), len)
+        (l, V::select(ok, V::div(num, den), zero))
     }
 }
 
@@ -1680,7 +1681,6 @@ fn quads_avx2(
     // SAFETY: compiled with AVX2 (`V8`'s operations need no more); every access stays below
     // `n` (asserted above).
     unsafe {
-        let zero = V8::splat(0.0);
         // The span's columns of lanes `a` (the pairs' first ends).
         let columns_a = _mm256_setr_epi32(0, 1, 8, 9, 4, 5, 12, 13);
         let mut at = 0;
@@ -1699,12 +1699,11 @@ fn quads_avx2(
             let (wa, wb) = span_at(w, at, whole, k);
             // Rest lengths by slot: the first ends' lanes only.
             let (ra, _) = span_at(rest, at, whole, k);
-            let (l, f, _) = pair_factor(
+            let (l, f) = pair_factor(
                 ([xa, ya, za], [xb, yb, zb]),
                 ([pxa, pya, pza], [pxb, pyb, pzb]),
                 V8::add(wa, wb),
                 ra,
-                zero,
                 params,
             );
             for (v, (a, b), l) in [
@@ -2328,6 +2327,19 @@ fn transpose8(r: [std::arch::x86_64::__m256; 8]) -> [std::arch::x86_64::__m256; 
     ]
 }
 
+/// Under CI on x86-64, fails unless the CPU has AVX2: a test of an AVX2 kernel (`what`) must
+/// not pass there by skipping it (elsewhere a CPU without AVX2 has only the other kernels to
+/// run).
+#[cfg(test)]
+pub(crate) fn require_avx2_under_ci(what: &str) {
+    if cfg!(target_arch = "x86_64") && std::env::var_os("CI").is_some() {
+        assert!(
+            Kernel::Avx2.is_available(),
+            "CI: no AVX2 on this CPU, {what} would go untested"
+        );
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -2367,12 +2379,7 @@ mod tests {
     #[test]
     fn every_kernels_chain_solve_gives_the_generic_bits() {
         use crate::solver::chains::{self, Block, FIELDS, LANES, SCRATCH};
-        if cfg!(target_arch = "x86_64") && std::env::var_os("CI").is_some() {
-            assert!(
-                Kernel::Avx2.is_available(),
-                "CI: no AVX2 on this CPU, the AVX2 chain solve would go untested"
-            );
-        }
+        require_avx2_under_ci("the AVX2 chain solve");
         for len in [2, 37] {
             let size = chains::stride(len);
             let mut fields = vec![0.0_f32; FIELDS * size];
