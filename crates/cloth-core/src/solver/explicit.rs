@@ -5,7 +5,7 @@
 
 use glam::Vec3;
 
-use super::SubstepCtx;
+use super::{SubstepCtx, kick_drift};
 use crate::collide::resolve_contacts;
 use crate::forces::accumulate;
 
@@ -36,16 +36,7 @@ pub(super) fn symplectic_euler(ctx: &mut SubstepCtx<'_>, force: &mut [Vec3]) {
     forces(ctx, force);
     let h = ctx.h;
     let p = &mut *ctx.particles;
-    for (((x, v), &w), &f) in p
-        .position
-        .iter_mut()
-        .zip(p.velocity.iter_mut())
-        .zip(&p.inv_mass)
-        .zip(force.iter())
-    {
-        *v += (h * w) * f;
-        *x += h * *v;
-    }
+    kick_drift(p, force, h, h);
     resolve_contacts(ctx.colliders, p, h, ctx.contacts);
 }
 
@@ -61,17 +52,7 @@ pub(super) fn position_verlet(ctx: &mut SubstepCtx<'_>, force: &mut [Vec3]) {
         *x += half * v;
     }
     forces(ctx, force);
-    let h = ctx.h;
     let p = &mut *ctx.particles;
-    for (((x, v), &w), &f) in p
-        .position
-        .iter_mut()
-        .zip(p.velocity.iter_mut())
-        .zip(&p.inv_mass)
-        .zip(force.iter())
-    {
-        *v += (h * w) * f;
-        *x += half * *v;
-    }
+    kick_drift(p, force, ctx.h, half);
     resolve_contacts(ctx.colliders, p, half, ctx.contacts);
 }

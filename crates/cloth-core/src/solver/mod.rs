@@ -45,6 +45,23 @@ pub(crate) struct SubstepCtx<'a> {
     pub pinned: bool,
 }
 
+/// The reference paths' kick and drift, particle by particle: `v ← v + (h·w)·f`, then
+/// `x ← x + drift·v` with the new `v` (symplectic Euler and XPBD's prediction with
+/// `drift = h`, position Verlet's second half with `drift = h/2`). A pinned particle
+/// (`w = 0`) keeps its velocity.
+pub(crate) fn kick_drift(p: &mut Particles, force: &[Vec3], h: f32, drift: f32) {
+    for (((x, v), &w), &f) in p
+        .position
+        .iter_mut()
+        .zip(p.velocity.iter_mut())
+        .zip(&p.inv_mass)
+        .zip(force)
+    {
+        *v += (h * w) * f;
+        *x += drift * *v;
+    }
+}
+
 /// Provot-style strain limiting (Provot 1995): every structural and shear spring stretched
 /// past `(1 + limit)·L0` is shortened back to that length by moving its ends along the spring,
 /// mass-weighted (a pinned end does not move); the velocities change by the same displacement

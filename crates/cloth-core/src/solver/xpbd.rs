@@ -211,17 +211,7 @@ pub(super) fn substep(
             1.0 / h,
         );
         sc.prev.clone_from(&ctx.particles.position);
-        let p = &mut *ctx.particles;
-        for (((x, v), &w), &f) in p
-            .position
-            .iter_mut()
-            .zip(p.velocity.iter_mut())
-            .zip(&p.inv_mass)
-            .zip(force.iter())
-        {
-            *v += (h * w) * f;
-            *x += h * *v;
-        }
+        super::kick_drift(ctx.particles, force, h, h);
     }
 
     // 2. constraint sweeps: on the grid path when it applies (which it does only when no
