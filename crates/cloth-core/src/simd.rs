@@ -1603,9 +1603,10 @@ unsafe fn pair_factor<V: Lanes>(
             V::add(V::mul(l[0], d[0]), V::mul(l[1], d[1])),
             V::mul(l[2], d[2]),
         );
-        // s = ((−C − α̃·λ)·|l| − γ·(l·d)) / (((1 + γ)·wsum + α̃)·|l|²) with λ = 0, its
-        // product α̃·0 still subtracted as the scalar code does; +0 where not `ok` (the
-        // scalar code's mask of the bits); −C as a flip of the sign bit, as `-x` is.
+        // s = ((−C − α̃·λ)·|l| − γ·(l·d)) / (((1 + γ)·wsum + α̃)·|l|²) with λ = 0; +0 where
+        // not `ok` (the scalar code's mask of the bits); −C as a flip of the sign bit, as `-x`
+        // is. The product α̃·0 is not dead: a positive stiffness so small that k·h² is 0 gives
+        // α̃ = ∞, and ∞·0 is NaN in the scalar code too, so it stays for the same bits.
         let num = V::sub(
             V::mul(
                 V::sub(V::xor(constraint, V::splat(-0.0)), V::mul(alpha_v, zero)),
