@@ -81,20 +81,26 @@ pub(crate) fn body_forces(config: &SimConfig) -> (Vec3, f32) {
 
 /// The Hooke and dashpot force of a spring (rest length `rest`, stiffness `k`, damping `c`)
 /// on its first end, from its ends' positions and velocities `[x_a, x_b, v_a, v_b]`; its
-/// second end takes the opposite. `None` for a spring of zero length, which has no direction
-/// and adds nothing.
+/// second end takes the opposite. `None` for a spring of zero length (or one so short that
+/// its squared length is below `f32::MIN_POSITIVE`, about 1.1·10⁻¹⁹ m), which has no
+/// direction and adds nothing.
+///
+/// With `l = x_b − x_a`, the force is `(k·(|l| − rest)·(1/|l|) + c·((v_b − v_a)·l)·(1/|l|²))·l`:
+/// the square root and the one division `1/|l|²` both start from `|l|²`, so neither waits
+/// for the other (`1/|l|` is the product `|l|·(1/|l|²)`). The grid fast paths use the same
+/// operations in the same order, so every path gives the same bits.
 #[inline]
 pub(crate) fn spring_force([xa, xb, va, vb]: [Vec3; 4], rest: f32, k: f32, c: f32) -> Option<Vec3> {
     let l = xb - xa;
-    let len = l.length();
-    if len <= 0.0 {
+    let len2 = l.length_squared();
+    if len2 < f32::MIN_POSITIVE {
         return None;
     }
-    // One division, then products: the grid fast path uses the same operations, so both give
-    // the same bits.
-    let d = l * (1.0 / len);
-    let magnitude = k * (len - rest) + c * (vb - va).dot(d);
-    Some(magnitude * d)
+    let len = len2.sqrt();
+    let inv2 = 1.0 / len2;
+    let inv = len * inv2;
+    let per_length = k * (len - rest) * inv + c * (vb - va).dot(l) * inv2;
+    Some(per_length * l)
 }
 
 fn add_air(

@@ -443,8 +443,9 @@ unsafe trait Lanes: Copy {
     unsafe fn all(m: Self::Mask) -> bool;
     /// `v` in the mask's lanes, `back` elsewhere.
     unsafe fn select(m: Self::Mask, v: Self, back: Self) -> Self;
-    /// Whether some lane of the mask has `len <= 0` (false for NaN).
-    unsafe fn short(len: Self, m: Self::Mask) -> bool;
+    /// Whether some lane of the mask has a squared length `len2 < f32::MIN_POSITIVE` (a
+    /// spring of zero length to the reference; false for NaN).
+    unsafe fn short(len2: Self, m: Self::Mask) -> bool;
     /// `cur` moved up by one lane, lane 0 from `prev`'s last.
     unsafe fn shift1(prev: Self, cur: Self) -> Self;
     /// Lanes where `a > b` (false for NaN).
@@ -528,9 +529,11 @@ unsafe impl Lanes for V16 {
         Self(unsafe { std::arch::x86_64::_mm512_mask_blend_ps(m, back.0, v.0) })
     }
     #[inline(always)]
-    unsafe fn short(len: Self, m: Self::Mask) -> bool {
-        use std::arch::x86_64::{_CMP_LE_OQ, _mm512_cmp_ps_mask, _mm512_setzero_ps};
-        unsafe { _mm512_cmp_ps_mask::<_CMP_LE_OQ>(len.0, _mm512_setzero_ps()) & m != 0 }
+    unsafe fn short(len2: Self, m: Self::Mask) -> bool {
+        use std::arch::x86_64::{_CMP_LT_OQ, _mm512_cmp_ps_mask, _mm512_set1_ps};
+        unsafe {
+            _mm512_cmp_ps_mask::<_CMP_LT_OQ>(len2.0, _mm512_set1_ps(f32::MIN_POSITIVE)) & m != 0
+        }
     }
     #[inline(always)]
     unsafe fn gt(a: Self, b: Self) -> Self::Mask {
@@ -650,14 +653,14 @@ unsafe impl Lanes for V8 {
         Self(unsafe { _mm256_blendv_ps(back.0, v.0, _mm256_castsi256_ps(m)) })
     }
     #[inline(always)]
-    unsafe fn short(len: Self, m: Self::Mask) -> bool {
+    unsafe fn short(len2: Self, m: Self::Mask) -> bool {
         use std::arch::x86_64::{
-            _CMP_LE_OQ, _mm256_and_ps, _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_movemask_ps,
-            _mm256_setzero_ps,
+            _CMP_LT_OQ, _mm256_and_ps, _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_movemask_ps,
+            _mm256_set1_ps,
         };
         unsafe {
-            let le = _mm256_cmp_ps::<_CMP_LE_OQ>(len.0, _mm256_setzero_ps());
-            _mm256_movemask_ps(_mm256_and_ps(le, _mm256_castsi256_ps(m))) != 0
+            let lt = _mm256_cmp_ps::<_CMP_LT_OQ>(len2.0, _mm256_set1_ps(f32::MIN_POSITIVE));
+            _mm256_movemask_ps(_mm256_and_ps(lt, _mm256_castsi256_ps(m))) != 0
         }
     }
     #[inline(always)]
@@ -877,14 +880,14 @@ unsafe fn fused_lanes<V: Lanes, const S: u8>(
                 a0
             };
             if own[WARP] {
-                let (fw, len) = spring(&a0, &b0, p_warp, load::<V>(rest[WARP], c0), one);
-                bad |= V::short(len, live0);
+                let (fw, len2) = spring(&a0, &b0, p_warp, load::<V>(rest[WARP], c0), one);
+                bad |= V::short(len2, live0);
                 f = add3(f, fw);
                 store3(w_warp, c0, fw);
             }
             if own[WEFT] {
-                let (fw, len) = spring(&a0, &a1, p_weft, load::<V>(rest[WEFT], c0), one);
-                bad |= V::short(len, live1);
+                let (fw, len2) = spring(&a0, &a1, p_weft, load::<V>(rest[WEFT], c0), one);
+                bad |= V::short(len2, live1);
                 let fw = pad(fw, live1, minus);
                 f = add3(sub3(f, shifted1(prev_weft, fw)), fw);
                 prev_weft = fw;
@@ -896,8 +899,8 @@ unsafe fn fused_lanes<V: Lanes, const S: u8>(
                 f = sub3(f, ring::<V>(r_anti, c0));
             }
             if own[ANTI] {
-                let (fa, len) = spring(&a1, &b0, p_anti, load::<V>(rest[ANTI], c0), one);
-                bad |= V::short(len, live1);
+                let (fa, len2) = spring(&a1, &b0, p_anti, load::<V>(rest[ANTI], c0), one);
+                bad |= V::short(len2, live1);
                 let fa = pad(fa, live1, zero);
                 f = add3(f, shifted1(prev_anti, fa));
                 prev_anti = fa;
@@ -905,8 +908,8 @@ unsafe fn fused_lanes<V: Lanes, const S: u8>(
             }
             if own[DIAG] {
                 let b1 = ends::<V>(&b, c0 + 1);
-                let (fd, len) = spring(&a0, &b1, p_diag, load::<V>(rest[DIAG], c0), one);
-                bad |= V::short(len, live1);
+                let (fd, len2) = spring(&a0, &b1, p_diag, load::<V>(rest[DIAG], c0), one);
+                bad |= V::short(len2, live1);
                 let fd = pad(fd, live1, minus);
                 f = add3(f, fd);
                 store3(w_diag, c0, fd);
@@ -917,8 +920,8 @@ unsafe fn fused_lanes<V: Lanes, const S: u8>(
             let mut bendh = None;
             if own[BENDH] {
                 let a2 = ends::<V>(&a, c0 + 2);
-                let (fb, len) = spring(&a0, &a2, p_bendh, load::<V>(rest[BENDH], c0), one);
-                bad |= V::short(len, live2);
+                let (fb, len2) = spring(&a0, &a2, p_bendh, load::<V>(rest[BENDH], c0), one);
+                bad |= V::short(len2, live2);
                 let fb = pad(fb, live2, minus);
                 f = sub3(f, shifted2(prev_bendh, fb));
                 prev_bendh = fb;
@@ -926,8 +929,8 @@ unsafe fn fused_lanes<V: Lanes, const S: u8>(
             }
             if own[BENDV] {
                 let c2 = ends::<V>(&c, c0);
-                let (fb, len) = spring(&a0, &c2, p_bendv, load::<V>(rest[BENDV], c0), one);
-                bad |= V::short(len, live0);
+                let (fb, len2) = spring(&a0, &c2, p_bendv, load::<V>(rest[BENDV], c0), one);
+                bad |= V::short(len2, live0);
                 f = add3(f, fb);
                 store3(w_bendv, c0, fb);
             }
@@ -1009,8 +1012,8 @@ unsafe fn ends<V: Lanes>(r: &[&[f32]; 6], i: usize) -> [V; 6] {
 }
 
 /// Spring plus dashpot from ends `a` to `b` (stiffness and damping `k`, `c`, rest length
-/// `rest`), the reference's operations in its order: the force on the first end, and the
-/// length.
+/// `rest`), the reference's operations in its order (`forces::spring_force`): the force on
+/// the first end, and the squared length.
 ///
 /// # Safety
 /// As [`Lanes`].
@@ -1022,19 +1025,24 @@ unsafe fn spring<V: Lanes>(a: &[V; 6], b: &[V; 6], (k, c): (V, V), rest: V, one:
         let ly = V::sub(b[1], a[1]);
         let lz = V::sub(b[2], a[2]);
         let len2 = V::add(V::add(V::mul(lx, lx), V::mul(ly, ly)), V::mul(lz, lz));
+        // The square root and the division both start from the squared length: neither
+        // waits for the other (the row's latency; the same operations as the reference).
         let len = V::sqrt(len2);
-        let inv = V::div(one, len);
-        let (dx, dy, dz) = (V::mul(lx, inv), V::mul(ly, inv), V::mul(lz, inv));
+        let inv2 = V::div(one, len2);
+        let inv = V::mul(len, inv2);
         let (wx, wy, wz) = (V::sub(b[3], a[3]), V::sub(b[4], a[4]), V::sub(b[5], a[5]));
-        let along = V::add(V::add(V::mul(wx, dx), V::mul(wy, dy)), V::mul(wz, dz));
-        let magnitude = V::add(V::mul(k, V::sub(len, rest)), V::mul(c, along));
+        let along = V::add(V::add(V::mul(wx, lx), V::mul(wy, ly)), V::mul(wz, lz));
+        let per_length = V::add(
+            V::mul(V::mul(k, V::sub(len, rest)), inv),
+            V::mul(V::mul(c, along), inv2),
+        );
         (
             [
-                V::mul(magnitude, dx),
-                V::mul(magnitude, dy),
-                V::mul(magnitude, dz),
+                V::mul(per_length, lx),
+                V::mul(per_length, ly),
+                V::mul(per_length, lz),
             ],
-            len,
+            len2,
         )
     }
 }

@@ -1863,17 +1863,20 @@ fn springs(
             let lx = bx[j] - ax[j];
             let ly = by[j] - ay[j];
             let lz = bz[j] - az[j];
-            let len = (lx * lx + ly * ly + lz * lz).sqrt();
-            let inv = 1.0 / len;
-            let (dx, dy, dz) = (lx * inv, ly * inv, lz * inv);
+            // The reference's operations (`forces::spring_force`): the square root and
+            // the division both from the squared length.
+            let len2 = lx * lx + ly * ly + lz * lz;
+            let len = len2.sqrt();
+            let inv2 = 1.0 / len2;
+            let inv = len * inv2;
             let (wx, wy, wz) = (bvx[j] - avx[j], bvy[j] - avy[j], bvz[j] - avz[j]);
-            let magnitude = k * (len - rest[j]) + c * (wx * dx + wy * dy + wz * dz);
-            // A zero-length spring's lanes hold NaN: the substep is then discarded and run
-            // on the reference path (`bad`), so no select is needed here.
-            bad |= (j < live) & (len <= 0.0);
-            ox[j] = magnitude * dx;
-            oy[j] = magnitude * dy;
-            oz[j] = magnitude * dz;
+            let per_length = k * (len - rest[j]) * inv + c * (wx * lx + wy * ly + wz * lz) * inv2;
+            // A zero-length spring's lanes hold NaN or infinities: the substep is then
+            // discarded and run on the reference path (`bad`), so no select is needed here.
+            bad |= (j < live) & (len2 < f32::MIN_POSITIVE);
+            ox[j] = per_length * lx;
+            oy[j] = per_length * ly;
+            oz[j] = per_length * lz;
         }
         degenerate |= bad;
         fx[i..i + LANES].copy_from_slice(&ox);

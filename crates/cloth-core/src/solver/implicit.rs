@@ -631,10 +631,12 @@ fn assemble(
     h: f32,
 ) -> (Sym3, Vec3) {
     let l = xb - xa;
-    let len = l.length();
-    if len <= 0.0 || (k == 0.0 && c == 0.0) {
+    let len2 = l.length_squared();
+    // Zero length as `forces::spring_force` sees it.
+    if len2 < f32::MIN_POSITIVE || (k == 0.0 && c == 0.0) {
         return (Sym3::default(), Vec3::ZERO);
     }
+    let len = len2.sqrt();
     let d = l / len;
     let dd = Sym3::outer(d);
     let geometric = (1.0 - rest / len).max(0.0);
