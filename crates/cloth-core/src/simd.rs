@@ -2353,6 +2353,51 @@ pub(crate) fn require_avx2_under_ci(what: &str) {
 mod tests {
     use super::*;
 
+    /// The fused row's zero-length test ([`Lanes::short`]) flags a live lane whose squared
+    /// length is below `f32::MIN_POSITIVE` (±0, subnormal), as the reference skips it, and no
+    /// other: not the smallest normal, not a real length, not NaN (a NaN spring is left to the
+    /// step's instability check), and not a lane outside the mask. On 8 lanes of AVX2 and,
+    /// where the CPU has it, 16 of AVX-512. Tolerance: none.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn short_flags_the_squared_lengths_the_reference_skips() {
+        require_avx2_under_ci("the fused row's zero-length test");
+        let tiny = f32::MIN_POSITIVE;
+        let cases = [
+            (0.0, true),
+            (-0.0, true),
+            (tiny / 4.0, true),
+            (tiny, false),
+            (1e-3, false),
+            (f32::NAN, false),
+        ];
+        fn check<V: Lanes>(cases: &[(f32, bool)]) {
+            for &(len2, short) in cases {
+                for lane in 0..V::N {
+                    let mut v = vec![1.0_f32; V::N];
+                    v[lane] = len2;
+                    // SAFETY: the caller checked the CPU has `V`'s instruction set; `v`
+                    // holds `V::N` floats.
+                    let (all, below) = unsafe {
+                        let x = V::load(v.as_ptr());
+                        (
+                            V::short(x, V::first(0, V::N)),
+                            V::short(x, V::first(0, lane)),
+                        )
+                    };
+                    assert_eq!(all, short, "{len2:e} in lane {lane} of {}", V::N);
+                    assert!(!below, "{len2:e} in lane {lane}, outside the mask");
+                }
+            }
+        }
+        if Kernel::Avx2.is_available() {
+            check::<V8>(&cases);
+        }
+        if Kernel::Avx512.is_available() {
+            check::<V16>(&cases);
+        }
+    }
+
     /// Every kernel's tile transpose moves each value to its transposed place (distinct values,
     /// source and destination strides of 16 and of a row width; nothing else is written).
     #[test]

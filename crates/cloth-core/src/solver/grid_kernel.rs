@@ -2320,7 +2320,7 @@ mod tests {
     /// values: on a flat cloth at rest along a row (y, z and vx constant) a lane's two ends
     /// there are the same point. Only the row's real springs may report a zero length, else
     /// every such substep would go to the reference path; a real zero-length spring still
-    /// reports it.
+    /// reports it, and so does one too short for its squared length to be a normal float.
     #[test]
     fn only_a_rows_real_springs_report_a_zero_length() {
         let cols: usize = 40; // 39 weft springs (c, c + 1), computed as two chunks of LANES
@@ -2361,6 +2361,16 @@ mod tests {
         let mut touching = all.clone();
         touching[5] = touching[6];
         assert!(weft(&touching), "spring (5, 6) has zero length");
+        // Zero length as the reference sees it (`forces::spring_force`): a squared length
+        // below `f32::MIN_POSITIVE`, whose reciprocal would overflow; just above it, a spring.
+        let mut near = all.clone();
+        (near[5], near[6]) = (0.0, 1e-20);
+        assert!(
+            weft(&near),
+            "spring (5, 6) of 1e-20 m counts as zero length"
+        );
+        (near[5], near[6]) = (0.0, 1.2e-19);
+        assert!(!weft(&near), "spring (5, 6) of 1.2e-19 m is a spring");
     }
 
     /// The balance moves a boundary towards the band that finished first until the bands
