@@ -199,7 +199,8 @@ mod tests {
     /// Hooke's law with a dashpot along the spring, F = (k(|L| − L0) + c·(v_b − v_a)·L̂)·L̂ on
     /// the first end: [`spring_force`] (its reciprocal length as |L|·(1/|L|²)) matches the law
     /// evaluated in f64 from the same f32 differences on 10,000 random springs (lengths 10⁻³ to
-    /// 1 m, strains up to ±50 %, stiffness to 10⁴ N/m, damping to 10 N·s/m, speeds to 10 m/s).
+    /// 1 m, rest lengths 0.5 to 1.5 times the length, stiffness to 10⁴ N/m, damping to
+    /// 10 N·s/m, velocity components to ±10 m/s).
     /// Tolerance: 10⁻⁶ of the size of the terms the result cancels from, k(|L| + L0) +
     /// c·|Δv| (|L| rounded to f32 is off by up to an ulp of |L|, which k(|L| − L0) keeps
     /// however small the strain), a few f32 roundings.
