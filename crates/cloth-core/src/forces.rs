@@ -82,25 +82,38 @@ pub(crate) fn body_forces(config: &SimConfig) -> (Vec3, f32) {
 /// The Hooke and dashpot force of a spring (rest length `rest`, stiffness `k`, damping `c`)
 /// on its first end, from its ends' positions and velocities `[x_a, x_b, v_a, v_b]`; its
 /// second end takes the opposite. `None` for a spring of zero length (or one so short that
-/// its squared length is below `f32::MIN_POSITIVE`, about 1.1·10⁻¹⁹ m), which has no
-/// direction and adds nothing.
+/// its squared length is below [`ZERO_LENGTH_SQUARED`]), which has no direction and adds
+/// nothing.
 ///
 /// With `l = x_b − x_a`, the force is `(k·(|l| − rest)·(1/|l|) + c·((v_b − v_a)·l)·(1/|l|²))·l`:
 /// the square root and the one division `1/|l|²` both start from `|l|²`, so neither waits
-/// for the other (`1/|l|` is the product `|l|·(1/|l|²)`). The grid fast paths use the same
-/// operations in the same order, so every path gives the same bits.
+/// for the other (`1/|l|` is the product `|l|·(1/|l|²)`; [`spring_per_length`]). The grid
+/// fast paths use the same operations in the same order, so every path gives the same bits.
 #[inline]
 pub(crate) fn spring_force([xa, xb, va, vb]: [Vec3; 4], rest: f32, k: f32, c: f32) -> Option<Vec3> {
     let l = xb - xa;
     let len2 = l.length_squared();
-    if len2 < f32::MIN_POSITIVE {
+    if len2 < ZERO_LENGTH_SQUARED {
         return None;
     }
+    Some(spring_per_length(len2, (vb - va).dot(l), rest, k, c) * l)
+}
+
+/// Squared lengths below this (`f32::MIN_POSITIVE`, a spring shorter than about 1.1·10⁻¹⁹ m)
+/// are a spring of zero length to every path: its `1/|l|²` would overflow. The reference
+/// skips such a spring; the grid kernels flag it and hand the substep to the reference.
+pub(crate) const ZERO_LENGTH_SQUARED: f32 = f32::MIN_POSITIVE;
+
+/// The scalar force of a spring per unit of its vector `l`, from its squared length `len2`
+/// and `along = (v_b − v_a)·l`: `k·(|l| − rest)·(1/|l|) + c·along·(1/|l|²)`, with `1/|l|`
+/// as `|l|·(1/|l|²)`. The reference and the compiled row kernel both call it, so both give
+/// these bits; the fused SIMD row (`simd::spring`) runs the same operations in this order.
+#[inline(always)]
+pub(crate) fn spring_per_length(len2: f32, along: f32, rest: f32, k: f32, c: f32) -> f32 {
     let len = len2.sqrt();
     let inv2 = 1.0 / len2;
     let inv = len * inv2;
-    let per_length = k * (len - rest) * inv + c * (vb - va).dot(l) * inv2;
-    Some(per_length * l)
+    k * (len - rest) * inv + c * along * inv2
 }
 
 fn add_air(

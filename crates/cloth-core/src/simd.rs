@@ -443,7 +443,7 @@ unsafe trait Lanes: Copy {
     unsafe fn all(m: Self::Mask) -> bool;
     /// `v` in the mask's lanes, `back` elsewhere.
     unsafe fn select(m: Self::Mask, v: Self, back: Self) -> Self;
-    /// Whether some lane of the mask has a squared length `len2 < f32::MIN_POSITIVE` (a
+    /// Whether some lane of the mask has a squared length `len2 < forces::ZERO_LENGTH_SQUARED` (a
     /// spring of zero length to the reference; false for NaN).
     unsafe fn short(len2: Self, m: Self::Mask) -> bool;
     /// `cur` moved up by one lane, lane 0 from `prev`'s last.
@@ -532,7 +532,11 @@ unsafe impl Lanes for V16 {
     unsafe fn short(len2: Self, m: Self::Mask) -> bool {
         use std::arch::x86_64::{_CMP_LT_OQ, _mm512_cmp_ps_mask, _mm512_set1_ps};
         unsafe {
-            _mm512_cmp_ps_mask::<_CMP_LT_OQ>(len2.0, _mm512_set1_ps(f32::MIN_POSITIVE)) & m != 0
+            _mm512_cmp_ps_mask::<_CMP_LT_OQ>(
+                len2.0,
+                _mm512_set1_ps(crate::forces::ZERO_LENGTH_SQUARED),
+            ) & m
+                != 0
         }
     }
     #[inline(always)]
@@ -659,7 +663,10 @@ unsafe impl Lanes for V8 {
             _mm256_set1_ps,
         };
         unsafe {
-            let lt = _mm256_cmp_ps::<_CMP_LT_OQ>(len2.0, _mm256_set1_ps(f32::MIN_POSITIVE));
+            let lt = _mm256_cmp_ps::<_CMP_LT_OQ>(
+                len2.0,
+                _mm256_set1_ps(crate::forces::ZERO_LENGTH_SQUARED),
+            );
             _mm256_movemask_ps(_mm256_and_ps(lt, _mm256_castsi256_ps(m))) != 0
         }
     }
@@ -2354,7 +2361,7 @@ mod tests {
     use super::*;
 
     /// The fused row's zero-length test ([`Lanes::short`]) flags a live lane whose squared
-    /// length is below `f32::MIN_POSITIVE` (±0, subnormal), as the reference skips it, and no
+    /// length is below `forces::ZERO_LENGTH_SQUARED` (±0, subnormal), as the reference skips it, and no
     /// other: not the smallest normal, not a real length, not NaN (a NaN spring is left to the
     /// step's instability check), and not a lane outside the mask. On 8 lanes of AVX2 and,
     /// where the CPU has it, 16 of AVX-512. Tolerance: none.
@@ -2362,7 +2369,7 @@ mod tests {
     #[test]
     fn short_flags_the_squared_lengths_the_reference_skips() {
         require_avx2_under_ci("the fused row's zero-length test");
-        let tiny = f32::MIN_POSITIVE;
+        let tiny = crate::forces::ZERO_LENGTH_SQUARED;
         let cases = [
             (0.0, true),
             (-0.0, true),

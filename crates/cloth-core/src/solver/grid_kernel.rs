@@ -57,6 +57,7 @@ use super::placed::Placed;
 use super::shared_rows::SharedRows;
 use crate::collide::{Collider, ccd, resolve_contacts_in};
 use crate::config::{Integrator, SimConfig};
+use crate::forces::{ZERO_LENGTH_SQUARED, spring_per_length};
 use crate::simd::{self, Kernel};
 use crate::topology::{SpringKind, Topology};
 
@@ -1863,17 +1864,14 @@ fn springs(
             let lx = bx[j] - ax[j];
             let ly = by[j] - ay[j];
             let lz = bz[j] - az[j];
-            // The reference's operations (`forces::spring_force`): the square root and
-            // the division both from the squared length.
+            // The reference's operations (`forces::spring_force`).
             let len2 = lx * lx + ly * ly + lz * lz;
-            let len = len2.sqrt();
-            let inv2 = 1.0 / len2;
-            let inv = len * inv2;
             let (wx, wy, wz) = (bvx[j] - avx[j], bvy[j] - avy[j], bvz[j] - avz[j]);
-            let per_length = k * (len - rest[j]) * inv + c * (wx * lx + wy * ly + wz * lz) * inv2;
+            let along = wx * lx + wy * ly + wz * lz;
+            let per_length = spring_per_length(len2, along, rest[j], k, c);
             // A zero-length spring's lanes hold NaN or infinities: the substep is then
             // discarded and run on the reference path (`bad`), so no select is needed here.
-            bad |= (j < live) & (len2 < f32::MIN_POSITIVE);
+            bad |= (j < live) & (len2 < ZERO_LENGTH_SQUARED);
             ox[j] = per_length * lx;
             oy[j] = per_length * ly;
             oz[j] = per_length * lz;

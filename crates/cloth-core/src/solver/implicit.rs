@@ -49,7 +49,7 @@ pub(crate) mod grid;
 use super::SubstepCtx;
 use crate::collide::{Collider, resolve_contacts_in};
 use crate::config::SimConfig;
-use crate::forces::{air_share, body_forces, capped_damping, spring_force};
+use crate::forces::{ZERO_LENGTH_SQUARED, air_share, body_forces, capped_damping, spring_force};
 use crate::particles::Particles;
 use crate::topology::{Spring, SpringKind, Topology};
 
@@ -633,7 +633,7 @@ fn assemble(
     let l = xb - xa;
     let len2 = l.length_squared();
     // Zero length as `forces::spring_force` sees it.
-    if len2 < f32::MIN_POSITIVE || (k == 0.0 && c == 0.0) {
+    if len2 < ZERO_LENGTH_SQUARED || (k == 0.0 && c == 0.0) {
         return (Sym3::default(), Vec3::ZERO);
     }
     let len = len2.sqrt();
