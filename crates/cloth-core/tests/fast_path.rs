@@ -345,6 +345,56 @@ fn a_spring_reaching_zero_length_in_place_gives_the_reference_bits() {
     }
 }
 
+/// The arrays' contact pass leaves a chunk of 32 particles alone when every one has φ =
+/// |x − c| − r − t ≥ 0. A 64-column cloth (whole chunks) laid onto a sphere's contact
+/// surface, each particle at (r + t)·(1 + δ) along its direction from the centre, rows
+/// alternating between δ all just outside (0 < δ < 0.001: no contact) and δ mixing contacts
+/// 1–4 µm deep with particles outside; a substep of 10⁻⁷ s, so that the springs, far from
+/// rest, move nothing by more than a rounding. Every explicit integrator on every kernel
+/// gives the reference's bits and contact count (tolerance: none), and the count is the
+/// number of particles placed inside (δ < 0). (A chunk test with a margin of −0.1 % instead
+/// of the exact one fails it.)
+#[test]
+fn contacts_just_inside_a_sphere_in_whole_chunks_give_the_reference_bits() {
+    let n = 64;
+    for integrator in Integrator::EXPLICIT {
+        let mut sim = presets::peer_ball(n).expect("peer");
+        let mut config = *sim.config();
+        config.integrator = integrator;
+        config.substeps = 1;
+        config.dt = 1e-7;
+        config.gravity = Vec3::ZERO;
+        sim.set_config(config).expect("config");
+        let (c, r, t) = (Vec3::new(0.0, 0.1, 0.0), 0.3, 0.004);
+        sim.set_collider(0, Collider::sphere(c, r).with_thickness(t))
+            .expect("ball");
+        let margin = [1e-7, 4e-4, 9.9e-4];
+        let mixed = [-4e-6, 2e-3, -1e-6, 5e-3];
+        let mut inside = 0;
+        for i in 0..n * n {
+            let (row, col) = (i / n, i % n);
+            let d = if row % 2 == 0 {
+                margin[col % margin.len()]
+            } else {
+                mixed[col % mixed.len()]
+            };
+            inside += u32::from(d < 0.0);
+            let dir = (sim.particles().position[i] - c).normalize();
+            sim.set_position(i, c + dir * ((r + t) * (1.0 + d)))
+                .expect("position");
+        }
+        let reference = run(sim.clone(), Kernel::Reference, 1);
+        assert_eq!(reference.contacts, [inside], "{}", integrator.name());
+        for kernel in Kernel::ALL
+            .into_iter()
+            .filter(|k| *k != Kernel::Reference && k.is_available())
+        {
+            let fast = run(sim.clone(), kernel, 1);
+            assert!(fast == reference, "{}: {kernel:?}", integrator.name());
+        }
+    }
+}
+
 #[test]
 fn a_degenerate_spring_falls_back_to_the_reference() {
     // Two neighbours at the same point: the reference skips that spring; the fast path
