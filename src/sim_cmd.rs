@@ -63,12 +63,13 @@ pub struct SimArgs {
     /// Write a JSON run report to FILE.
     #[arg(long, value_name = "FILE")]
     pub report: Option<PathBuf>,
-    /// Worker threads, 1 ..= 256. Results are bit-identical for every count: the explicit
-    /// integrators' grid fast path cuts the rows into one band per thread and sums every
-    /// force in a fixed order; XPBD's grid path projects colours of disjoint springs; implicit
-    /// Euler splits its passes into fixed tasks and adds their partial sums in task order
-    /// (recorded in the report, with the kernel that ran).
-    #[arg(long, value_name = "N", default_value = "1", value_parser = parse_threads)]
+    /// Worker threads, 1 ..= 256 (default: the logical CPUs this process may use, at most
+    /// 256). Results are bit-identical for every count: the explicit integrators' grid fast
+    /// path cuts the rows into one band per thread and sums every force in a fixed order;
+    /// XPBD's grid path projects colours of disjoint springs; implicit Euler splits its
+    /// passes into fixed tasks and adds their partial sums in task order (recorded in the
+    /// report, with the kernel that ran).
+    #[arg(long, value_name = "N", default_value_t = default_threads(), value_parser = parse_threads)]
     pub threads: usize,
     /// The grid paths' kernel: reference, portable, avx2 or avx512 (default: the widest this
     /// CPU runs). For the explicit integrators and implicit Euler all give the same bits; for
@@ -178,6 +179,14 @@ fn parse_kernel(s: &str) -> Result<cloth_core::simd::Kernel, String> {
     } else {
         Err(format!("this CPU cannot run the {s} kernel"))
     }
+}
+
+/// `--threads` when not given: the logical CPUs this process may use (its affinity mask or
+/// cgroup quota, as `std` reads them; 1 if unknown), at most 256.
+pub(crate) fn default_threads() -> usize {
+    std::thread::available_parallelism()
+        .map_or(1, std::num::NonZeroUsize::get)
+        .min(256)
 }
 
 fn parse_threads(s: &str) -> Result<usize, String> {

@@ -177,6 +177,48 @@ fn exports_parse_with_independent_parsers() {
     }
 }
 
+/// Without `--threads` a run uses the logical CPUs the process may use (at most 256), and its
+/// results are the bits of a one-thread run: the same positions in the last OBJ frame, byte
+/// for byte (the run report's `threads` says which count ran).
+#[test]
+fn the_default_thread_count_is_the_machines_and_changes_no_bit() {
+    let guard = tmp("default-threads");
+    let dir = guard.path();
+    let expected = std::thread::available_parallelism()
+        .map_or(1, std::num::NonZeroUsize::get)
+        .min(256);
+    let mut frames = Vec::new();
+    for threads in [None, Some("1")] {
+        let out = dir.join(threads.unwrap_or("default"));
+        let rep = out.join("r.json");
+        let mut args = vec![
+            "sim",
+            "peer-ball",
+            "--frames",
+            "3",
+            "--resolution",
+            "40",
+            "--out",
+            s(&out),
+            "--report",
+            s(&rep),
+        ];
+        if let Some(t) = threads {
+            args.extend(["--threads", t]);
+        }
+        let (code, _, err) = cloth(&args);
+        assert_eq!(code, 0, "{err}");
+        let r = report(&rep);
+        let ran = threads.map_or(expected, |t| t.parse().expect("a count"));
+        assert_eq!(r["threads"], ran);
+        frames.push(std::fs::read(out.join("frame_0003.obj")).expect("last frame"));
+    }
+    assert!(
+        frames[0] == frames[1],
+        "the default run differs from one thread's"
+    );
+}
+
 /// The report holds its documented fields (docs/scenes.md, "Run report").
 #[test]
 fn report_has_its_documented_fields() {
