@@ -840,7 +840,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
     }
     let figure = |x: Option<f64>, text: &dyn Fn(f64) -> String| x.map_or("n/a".into(), text);
     outln!(
-        "done: {} frames, status {status_line}, {:.3} s stepping, {} ms/frame, {} particle-substeps/s (median frame {}; {} threads, kernel {})",
+        "done: {} frames, status {status_line}, {:.3} s stepping, {} ms/frame, {} particle-substeps/s (median frame {}; {} thread{}, kernel {})",
         records.len(),
         stepping,
         figure(
@@ -850,6 +850,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         figure(throughput, &|x| format!("{x:.3e}")),
         figure(median_throughput, &|x| format!("{x:.3e}")),
         args.threads,
+        if args.threads == 1 { "" } else { "s" },
         kernel.name()
     );
     for (name, q) in &strains {
