@@ -183,7 +183,7 @@ fn parse_kernel(s: &str) -> Result<cloth_core::simd::Kernel, String> {
 
 /// `--threads` when not given: the logical CPUs this process may use (its affinity mask or
 /// cgroup quota, as `std` reads them; 1 if unknown), at most 256.
-pub(crate) fn default_threads() -> usize {
+fn default_threads() -> usize {
     std::thread::available_parallelism()
         .map_or(1, std::num::NonZeroUsize::get)
         .min(256)
