@@ -181,12 +181,15 @@ fn parse_kernel(s: &str) -> Result<cloth_core::simd::Kernel, String> {
     }
 }
 
-/// `--threads` when not given: the logical CPUs this process may use (its affinity mask or
-/// cgroup quota, as `std` reads them; 1 if unknown), at most 256.
+/// The logical CPUs this process may use (its affinity mask or cgroup quota, as `std` reads
+/// them; 1 if unknown): the report's `host.logical_cpus`.
+fn logical_cpus() -> usize {
+    std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+}
+
+/// `--threads` when not given: [`logical_cpus`], at most 256.
 fn default_threads() -> usize {
-    std::thread::available_parallelism()
-        .map_or(1, std::num::NonZeroUsize::get)
-        .min(256)
+    logical_cpus().min(256)
 }
 
 fn parse_threads(s: &str) -> Result<usize, String> {
@@ -886,6 +889,5 @@ fn host() -> serde_json::Value {
                 .find_map(|line| line.strip_prefix("model name")?.split_once(':'))
                 .map(|(_, name)| name.trim().to_owned())
         });
-    let logical = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
-    serde_json::json!({ "cpu": cpu, "logical_cpus": logical })
+    serde_json::json!({ "cpu": cpu, "logical_cpus": logical_cpus() })
 }
