@@ -411,7 +411,7 @@ impl Default for StabilityLimits {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SimConfig {
     /// Time step of one call to [`step`](crate::Simulation::step), s. Default 1/60 s.
-    /// Must be finite and `> 0`.
+    /// Must be finite, with `dt / substeps` at least [`MIN_SUBSTEP_DT`] (1 ns).
     pub dt: f32,
     /// Substeps per step: each substep advances dt/substeps. Default 32. `1 ..= 100000`.
     pub substeps: u32,
@@ -472,6 +472,10 @@ impl Default for SimConfig {
 /// Largest number of substeps per step.
 pub const MAX_SUBSTEPS: u32 = 100_000;
 
+/// Shortest substep dt/substeps, s (1 ns): far below any cloth's stability limit, and far
+/// above where a substep's Δx/h and 1/h² leave f32's range.
+pub const MIN_SUBSTEP_DT: f32 = 1.0e-9;
+
 impl SimConfig {
     /// Checks every field; the error names the first bad one and its allowed range.
     pub fn validate(&self) -> Result<()> {
@@ -481,6 +485,18 @@ impl SimConfig {
                 "config.substeps",
                 self.substeps,
                 format!("1 ..= {MAX_SUBSTEPS}"),
+            ));
+        }
+        if self.substep_dt() < MIN_SUBSTEP_DT {
+            return Err(ClothError::invalid(
+                "config.dt",
+                self.dt,
+                format!(
+                    "a step whose substeps (dt / {} substeps = {:e} s) are at least \
+                     {MIN_SUBSTEP_DT:e} s",
+                    self.substeps,
+                    self.substep_dt()
+                ),
             ));
         }
         check::finite_vec("config.gravity", self.gravity)?;

@@ -260,8 +260,8 @@ pub(crate) fn measure(
     (stats, bad)
 }
 
-/// One chunk of [`measure`]'s particle pass: the energies Σ ½m|v|² and −Σ m·g·x (in
-/// eight lanes, particle `i` of the chunk adding to lane `i mod 8`, combined in lane order),
+/// One chunk of [`measure`]'s particle pass: the energies Σ ½m|v|² and −Σ m·g·x (in f64,
+/// in eight lanes, particle `i` of the chunk adding to lane `i mod 8`, combined in lane order),
 /// the first particle with a non-finite state or a speed above the limit,
 /// and the deepest penetration of a free particle into any collider (from 0; spheres and
 /// planes computed vectorised with the shapes' own operations, so the same values).
@@ -287,9 +287,11 @@ pub(crate) fn particle_chunk(
     let mut any_bad = false;
     let mut one = |l: usize, x: Vec3, v: Vec3, m: f32| {
         any_bad |= bad_particle(x, v);
+        // In f64 from the components on: finite for any finite state (|v|² and g·x in f32
+        // overflow past about 10¹⁹ m/s and 10³⁷ m²/s²).
         let m = f64::from(m);
-        kinetic[l] += 0.5 * m * f64::from(v.length_squared());
-        potential[l] -= m * f64::from(g.dot(x));
+        kinetic[l] += 0.5 * m * v.as_dvec3().length_squared();
+        potential[l] -= m * g.as_dvec3().dot(x.as_dvec3());
     };
     let ((xc, xt), (vc, vt), (mc, mt)) =
         (x.as_chunks::<E>(), v.as_chunks::<E>(), m.as_chunks::<E>());
@@ -634,6 +636,10 @@ pub(crate) fn grid_row_lengths(
 /// exceed), one per entry of `quantiles` (each in `0 ..= 1`; 1 is the maximum). `None` when
 /// the cloth has no spring of that class. For reports, outside the step: it sorts a copy of the
 /// strains.
+///
+/// # Panics
+/// When a spring of `class` joins a particle that is not below `position.len()` (the
+/// positions must be those of the cloth whose `topology` this is).
 #[must_use]
 pub fn strain_quantiles(
     topology: &Topology,

@@ -59,7 +59,9 @@ pub enum ClothError {
         step: u64,
         /// Simulated time at the start of the failed step, in seconds.
         time: f64,
-        /// The first particle found in a bad state.
+        /// The first particle found in a bad state (0 when a collider's pose went bad: the
+        /// reason names the collider; for an implicit solve that overflowed, the particle of
+        /// largest acceleration).
         particle: u32,
         /// What was wrong with it.
         reason: String,
@@ -128,6 +130,19 @@ pub(crate) mod check {
             Ok(())
         } else {
             Err(ClothError::invalid(name, value, "finite components"))
+        }
+    }
+
+    /// Every component finite and at most `max` in magnitude (m).
+    pub fn bounded_vec(name: &str, value: Vec3, max: f32) -> Result<()> {
+        if value.is_finite() && value.abs().max_element() <= max {
+            Ok(())
+        } else {
+            Err(ClothError::invalid(
+                name,
+                value,
+                format!("finite components of magnitude at most {max:e} m"),
+            ))
         }
     }
 

@@ -103,10 +103,130 @@ pub struct Cloth {
 }
 
 impl Cloth {
-    /// Index of the particle at `(row, col)`.
+    /// Checks that the parts fit together, for a cloth not made by [`GridBuilder`] or
+    /// changed since (its fields are public); [`crate::Simulation::new`] calls it.
+    ///
+    /// # Errors
+    /// [`ClothError::InvalidArgument`] naming the first field found wrong:
+    /// - `cloth.particles.*`: arrays of different lengths, no particle or more than
+    ///   `u32::MAX`, a non-finite position or velocity, a mass that is not finite and `> 0`
+    ///   with a finite inverse, an inverse mass other than 0 (pinned) or 1/mass;
+    /// - `cloth.rows`, `cloth.cols`: `rows × cols` other than the particle count, or another
+    ///   size than the grid the topology was built for;
+    /// - `cloth.topology.springs[j]`: an end that is not a particle, both ends the same
+    ///   particle, a rest length that is not finite and `> 0`;
+    /// - `cloth.topology.triangles[t]`: a corner that is not a particle.
+    pub fn validate(&self) -> Result<()> {
+        let p = &self.particles;
+        let n = p.position.len();
+        for (name, len) in [
+            ("cloth.particles.velocity", p.velocity.len()),
+            ("cloth.particles.mass", p.mass.len()),
+            ("cloth.particles.inv_mass", p.inv_mass.len()),
+        ] {
+            if len != n {
+                return Err(ClothError::invalid(
+                    name,
+                    format_args!("{len} entries"),
+                    format!("{n} entries (one per position)"),
+                ));
+            }
+        }
+        if !(1..=u32::MAX as usize).contains(&n) {
+            return Err(ClothError::invalid(
+                "cloth.particles.position",
+                format_args!("{n} entries"),
+                format!("1 ..= {} particles", u32::MAX),
+            ));
+        }
+        if self.rows.checked_mul(self.cols) != Some(n) {
+            return Err(ClothError::invalid(
+                "cloth.rows × cloth.cols",
+                format_args!("{} × {}", self.rows, self.cols),
+                format!("{n} (the particle count)"),
+            ));
+        }
+        if let Some((rows, cols)) = self.topology.grid()
+            && (rows, cols) != (self.rows, self.cols)
+        {
+            return Err(ClothError::invalid(
+                "cloth.rows × cloth.cols",
+                format_args!("{} × {}", self.rows, self.cols),
+                format!("{rows} × {cols} (the grid the topology was built for)"),
+            ));
+        }
+        for (name, values) in [
+            ("cloth.particles.position", &p.position),
+            ("cloth.particles.velocity", &p.velocity),
+        ] {
+            if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+                return Err(ClothError::invalid(
+                    format!("{name}[{i}]"),
+                    values[i],
+                    "finite components",
+                ));
+            }
+        }
+        for (i, (&m, &w)) in p.mass.iter().zip(&p.inv_mass).enumerate() {
+            if !(m.is_finite() && m > 0.0 && (1.0 / m).is_finite()) {
+                return Err(ClothError::invalid(
+                    format!("cloth.particles.mass[{i}]"),
+                    m,
+                    format!(
+                        "a finite mass > 0 with a finite inverse (at least {:e} kg)",
+                        1.0 / f32::MAX
+                    ),
+                ));
+            }
+            if w != 0.0 && w != 1.0 / m {
+                return Err(ClothError::invalid(
+                    format!("cloth.particles.inv_mass[{i}]"),
+                    w,
+                    format!("0 (pinned) or {} (1/mass)", 1.0 / m),
+                ));
+            }
+        }
+        for (j, s) in self.topology.springs().iter().enumerate() {
+            if s.a as usize >= n || s.b as usize >= n || s.a == s.b {
+                return Err(ClothError::invalid(
+                    format!("cloth.topology.springs[{j}]"),
+                    format_args!("{} – {}", s.a, s.b),
+                    format!("two different particles 0 ..= {}", n - 1),
+                ));
+            }
+            if !(s.rest_length.is_finite() && s.rest_length > 0.0) {
+                return Err(ClothError::invalid(
+                    format!("cloth.topology.springs[{j}].rest_length"),
+                    s.rest_length,
+                    "a finite length > 0 m",
+                ));
+            }
+        }
+        if let Some(t) = self
+            .topology
+            .triangles()
+            .iter()
+            .position(|t| t.iter().any(|&i| i as usize >= n))
+        {
+            return Err(ClothError::invalid(
+                format!("cloth.topology.triangles[{t}]"),
+                self.topology.triangles()[t],
+                format!("three particles 0 ..= {}", n - 1),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Index of the particle at `(row, col)`: `row * cols + col` (not checked against the
+    /// grid: a `col` past `cols` is another row's particle).
+    ///
+    /// # Panics
+    /// When `row * cols + col` overflows `usize`.
     #[must_use]
     pub fn index(&self, row: usize, col: usize) -> usize {
-        row * self.cols + col
+        row.checked_mul(self.cols)
+            .and_then(|i| i.checked_add(col))
+            .expect("Cloth::index: row * cols + col overflows usize")
     }
 }
 
@@ -342,6 +462,26 @@ impl GridBuilder {
             .fold(0.0_f32, f32::max);
         let spacing = dx.min(dy);
         let needed = far * f32::EPSILON * RESOLVED_ULPS;
+        // Blame the size when the cloth's own extent, not its distance from the origin,
+        // puts a particle that far out.
+        if spacing < needed && self.origin.abs().max_element() <= 0.5 * width.max(height) {
+            let (name, value) = match self.extent {
+                Extent::Size { .. } => ("grid.size", (width, height)),
+                Extent::Spacing { .. } => ("grid.spacing", (dx, dy)),
+            };
+            return Err(ClothError::invalid(
+                name,
+                value,
+                format!(
+                    "a spacing of at least {needed:.3e} m along both directions, 1/{:.0} of the \
+                     farthest particle's distance from the world origin ({far:.3e} m), but \
+                     it is {spacing:.3e} m (f32 positions must resolve 1/{RESOLVED_ULPS} of a \
+                     spacing): use fewer particles along the short side, or a less \
+                     elongated cloth",
+                    1.0 / (f32::EPSILON * RESOLVED_ULPS)
+                ),
+            ));
+        }
         if spacing < needed {
             return Err(ClothError::invalid(
                 "grid.origin",
@@ -375,11 +515,18 @@ impl GridBuilder {
                 mass
             }
         };
-        if let Some(&m) = mass.iter().find(|m| !(m.is_finite() && **m > 0.0)) {
+        if let Some(&m) = mass
+            .iter()
+            .find(|&&m| !(m.is_finite() && m > 0.0 && (1.0 / m).is_finite()))
+        {
             return Err(ClothError::invalid(
                 "grid.mass",
                 m,
-                "a per-particle mass that is finite and > 0 (density × cell area underflowed or overflowed)",
+                format!(
+                    "a per-particle mass that is finite and > 0 with a finite inverse (at \
+                     least {:e} kg; density × cell area may have underflowed or overflowed)",
+                    1.0 / f32::MAX
+                ),
             ));
         }
 

@@ -34,6 +34,9 @@ impl Particles {
     }
 
     /// `true` when particle `i` is pinned.
+    ///
+    /// # Panics
+    /// When `i` is not below [`len`](Self::len).
     #[must_use]
     pub fn is_pinned(&self, i: usize) -> bool {
         self.inv_mass[i] == 0.0
@@ -73,9 +76,12 @@ impl Particles {
             .as_vec3()
     }
 
-    /// Centre of mass, m.
+    /// Centre of mass, m (the origin when there are no particles).
     #[must_use]
     pub fn center_of_mass(&self) -> Vec3 {
+        if self.is_empty() {
+            return Vec3::ZERO;
+        }
         let (weighted, total) = self
             .mass
             .iter()

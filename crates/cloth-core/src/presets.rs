@@ -29,11 +29,16 @@ fn substeps_within(config: &SimConfig, limit: f32) -> u32 {
 /// 1.25× under [`explicit_stability_limit_of`] (the Gershgorin bound of each free particle's
 /// springs, dashpots and damping, never above the stiffness-only [`explicit_stability_limit`];
 /// the dashpots set it at high resolutions); implicit Euler takes one substep per 1/60 s step
-/// (it is stable at any step); XPBD 20 substeps per 1/60 s.
+/// (it is stable at any step); XPBD 20 substeps per 1/60 s. Never more than
+/// [`crate::config::MAX_SUBSTEPS`].
 pub fn tune_for_integrator(config: &mut SimConfig, cloth: &Cloth) {
+    let per_second = |rate: f32| {
+        // (A float-to-int cast saturates.)
+        ((config.dt * rate).ceil() as u32).clamp(1, crate::config::MAX_SUBSTEPS)
+    };
     config.substeps = match config.integrator {
-        Integrator::ImplicitEuler => (config.dt * 60.0).ceil().max(1.0) as u32,
-        Integrator::Xpbd => (config.dt * 60.0 * 20.0).ceil().max(1.0) as u32,
+        Integrator::ImplicitEuler => per_second(60.0),
+        Integrator::Xpbd => per_second(60.0 * 20.0),
         _ => substeps_within(
             config,
             explicit_stability_limit_of(config, &cloth.topology, &cloth.particles),

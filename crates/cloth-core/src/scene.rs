@@ -47,7 +47,8 @@ pub struct Scene {
     /// One-line description. Default empty.
     #[serde(default)]
     pub description: String,
-    /// Default run length for `cloth sim` and the viewer, s. Default 4 s.
+    /// Default run length for `cloth sim` and the viewer, s, in `(0, 1e6]`
+    /// ([`MAX_DURATION`]). Default 4 s.
     #[serde(default = "default_duration")]
     pub duration: f32,
     /// The cloth grid.
@@ -69,6 +70,33 @@ pub struct Scene {
     pub camera: Option<CameraDesc>,
 }
 
+/// Longest `duration` of a scene, s (11.6 days of simulated time; `cloth sim --seconds` has
+/// the same bound).
+pub const MAX_DURATION: f32 = 1.0e6;
+
+/// An array of exactly `N` items: TOML's deserializer would fill a fixed-size array from
+/// the first `N` items of a longer one and drop the rest silently.
+fn exact<'de, D, T, const N: usize>(d: D) -> std::result::Result<[T; N], D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: Deserialize<'de>,
+{
+    let items = Vec::<T>::deserialize(d)?;
+    let len = items.len();
+    items.try_into().map_err(|_| {
+        serde::de::Error::invalid_length(len, &format!("an array of length {N}").as_str())
+    })
+}
+
+/// [`exact`] for an optional array (a key that may be left out).
+fn exact_opt<'de, D, T, const N: usize>(d: D) -> std::result::Result<Option<[T; N]>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: Deserialize<'de>,
+{
+    exact(d).map(Some)
+}
+
 fn default_duration() -> f32 {
     4.0
 }
@@ -78,24 +106,30 @@ fn default_duration() -> f32 {
 #[serde(deny_unknown_fields)]
 pub struct ClothDesc {
     /// `[rows, cols]`, each 2 ..= 8192.
+    #[serde(deserialize_with = "exact")]
     pub resolution: [u32; 2],
     /// `[width, height]`, m. Default `[1, 1]`. Ignored when `spacing` is given.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(deserialize_with = "exact_opt")]
     pub size: Option<[f32; 2]>,
     /// `[along_cols, along_rows]` particle spacing, m; instead of `size`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(deserialize_with = "exact_opt")]
     pub spacing: Option<[f32; 2]>,
     /// `"horizontal"` (default) or `"vertical"`.
     #[serde(default)]
     pub orientation: OrientationDesc,
     /// Centre of the grid, m. Default `[0, 0, 0]`.
     #[serde(default)]
+    #[serde(deserialize_with = "exact")]
     pub origin: [f32; 3],
     /// Rotation about the origin as XYZ Euler angles, degrees. Default `[0, 0, 0]`.
     #[serde(default)]
+    #[serde(deserialize_with = "exact")]
     pub rotation: [f32; 3],
     /// Initial velocity, m/s. Default `[0, 0, 0]`.
     #[serde(default)]
+    #[serde(deserialize_with = "exact")]
     pub velocity: [f32; 3],
     /// Areal density, kg/m². Default 0.2 unless `mass_per_particle` is given.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -221,6 +255,7 @@ impl Default for MaterialDesc {
 pub struct ForcesDesc {
     /// m/s². Default `[0, -9.81, 0]`.
     #[serde(default = "d_gravity")]
+    #[serde(deserialize_with = "exact")]
     pub gravity: [f32; 3],
     /// Global damping d in F = −d·v, N·s/m. Default 0.002.
     #[serde(default = "d_damping")]
@@ -266,6 +301,7 @@ pub struct AirDesc {
     pub lift: f32,
     /// Steady wind, m/s. Default `[0, 0, 0]`.
     #[serde(default)]
+    #[serde(deserialize_with = "exact")]
     pub wind: [f32; 3],
     /// Gusts `{ amplitude, frequency }`; none by default.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -355,6 +391,7 @@ pub struct ColliderDesc {
     pub kind: ColliderKind,
     /// Sphere or box centre; a mesh's position (where its origin goes), m.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(deserialize_with = "exact_opt")]
     pub center: Option<[f32; 3]>,
     /// A mesh's Wavefront OBJ file, relative to the scene file (triangles counter-clockwise
     /// seen from outside).
@@ -369,28 +406,36 @@ pub struct ColliderDesc {
     pub radius: Option<f32>,
     /// A point on the plane, m.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(deserialize_with = "exact_opt")]
     pub point: Option<[f32; 3]>,
     /// Plane outward normal (normalised).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(deserialize_with = "exact_opt")]
     pub normal: Option<[f32; 3]>,
     /// Capsule axis start, m.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(deserialize_with = "exact_opt")]
     pub a: Option<[f32; 3]>,
     /// Capsule axis end, m.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(deserialize_with = "exact_opt")]
     pub b: Option<[f32; 3]>,
     /// Box half side lengths, m, each `> 0`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(deserialize_with = "exact_opt")]
     pub half_extents: Option<[f32; 3]>,
     /// Box or mesh orientation as XYZ Euler angles, degrees. Default `[0, 0, 0]`.
     #[serde(default)]
+    #[serde(deserialize_with = "exact")]
     pub rotation: [f32; 3],
     /// Angular velocity about the pivot (centre; capsule midpoint; plane point), rad/s.
     /// Default `[0, 0, 0]`.
     #[serde(default)]
+    #[serde(deserialize_with = "exact")]
     pub angular_velocity: [f32; 3],
     /// Prescribed velocity, m/s. Default `[0, 0, 0]`.
     #[serde(default)]
+    #[serde(deserialize_with = "exact")]
     pub velocity: [f32; 3],
     /// Contact thickness, m, `>= 0`. Default 0.01.
     #[serde(default = "d_thickness")]
@@ -414,6 +459,19 @@ pub enum ColliderKind {
     Capsule,
     Box,
     Mesh,
+}
+
+impl ClothDesc {
+    /// The grid's spacing `(along the columns, along the rows)`, m, from `spacing`, else
+    /// `size` (default 1 m × 1 m) over the resolution (at least 2 each).
+    fn spacing_of(&self) -> (f64, f64) {
+        let [rows, cols] = self.resolution.map(|n| f64::from(n.max(2) - 1));
+        match (self.spacing, self.size) {
+            (Some([along_cols, along_rows]), _) => (f64::from(along_cols), f64::from(along_rows)),
+            (None, Some([w, h])) => (f64::from(w) / cols, f64::from(h) / rows),
+            (None, None) => (1.0 / cols, 1.0 / rows),
+        }
+    }
 }
 
 /// `friction = { static, kinetic }`.
@@ -682,8 +740,10 @@ impl Default for LimitsDesc {
 #[serde(deny_unknown_fields)]
 pub struct CameraDesc {
     /// Eye position, m.
+    #[serde(deserialize_with = "exact")]
     pub eye: [f32; 3],
     /// Look-at point, m.
+    #[serde(deserialize_with = "exact")]
     pub target: [f32; 3],
     /// Vertical field of view, degrees, in (0, 180). Default 45.
     #[serde(default = "d_fov")]
@@ -703,6 +763,15 @@ fn invalid(key: impl Into<String>, value: impl std::fmt::Debug, allowed: &str) -
     Invalid {
         key: key.into(),
         message: format!("{value:?} is not allowed: allowed {allowed}"),
+    }
+}
+
+/// A problem with `key` that is not a value out of range (a key missing, or given where it
+/// does not apply): `message` says what is wrong and what is allowed.
+fn problem(key: impl Into<String>, message: String) -> Invalid {
+    Invalid {
+        key: key.into(),
+        message,
     }
 }
 
@@ -731,10 +800,13 @@ fn non_negative(key: &str, v: f32) -> std::result::Result<(), Invalid> {
 }
 
 /// Bytes a simulation of `particles` particles and `springs` springs needs, roughly: state,
-/// scratch and backups per particle, and the springs with the implicit solver's blocks.
+/// scratch and backups per particle, and the springs with the implicit solver's blocks
+/// (saturating at `u64::MAX`).
 #[must_use]
 pub fn memory_estimate(particles: u64, springs: u64) -> u64 {
-    particles * 12 * 24 + springs * 48
+    particles
+        .saturating_mul(12 * 24)
+        .saturating_add(springs.saturating_mul(48))
 }
 
 impl Scene {
@@ -845,17 +917,8 @@ impl Scene {
                 ));
             };
             let path = path.trim();
-            let value: toml::Value = override_value(value).ok_or_else(|| {
-                scene_error(
-                    &where_,
-                    None,
-                    path,
-                    format!(
-                        "{value:?} is not a TOML value (a string other than a bare word \
-                             needs quotes: name=\"my drape\")"
-                    ),
-                )
-            })?;
+            let value: toml::Value = override_value(value)
+                .ok_or_else(|| scene_error(&where_, None, path, not_a_value(value)))?;
             set_path(&mut doc, path, value).map_err(|m| scene_error(&where_, None, path, m))?;
             let text = toml::to_string(&doc).expect("a TOML table serialises");
             let scene: Scene = toml::from_str(&text).map_err(|e| {
@@ -871,7 +934,31 @@ impl Scene {
             }
         }
         let text = toml::to_string(&doc).expect("a TOML table serialises");
-        Self::from_toml(&text, file)
+        // The file and each override passed on their own, so what is left (a mesh file that
+        // cannot be read) comes from reading meshes: name the last override of that key's
+        // table (positions in the merged text would point nowhere), else the file's line.
+        Self::from_toml(&text, file).map_err(|e| match e {
+            ClothError::Scene {
+                file: f,
+                key,
+                message,
+                ..
+            } => {
+                let root = |k: &str| k.split(['.', '[']).next().unwrap_or("").trim().to_owned();
+                let by = overrides.iter().rev().find(|o| {
+                    o.split_once('=')
+                        .is_some_and(|(p, _)| root(p) == root(&key))
+                });
+                match by {
+                    Some(item) => scene_error(&format!("--set {item}"), None, &key, message),
+                    None => {
+                        let pos = span_of(source, &key).map(|s| line_col(source, s.start));
+                        scene_error(&f, pos, &key, message)
+                    }
+                }
+            }
+            other => other,
+        })
     }
 
     /// Checks a scene built or edited in code exactly as [`Scene::from_toml`] checks a file;
@@ -893,19 +980,26 @@ impl Scene {
         Integrator::from_name(&self.solver.kind).unwrap_or_default()
     }
 
-    /// Number of particles and springs the scene builds.
+    /// Number of particles and springs the scene builds (of any resolution, even one that
+    /// [`from_toml`](Self::from_toml) refuses: the counts saturate at `u64::MAX`).
     #[must_use]
     pub fn counts(&self) -> (u64, u64) {
         let (r, c) = (
             u64::from(self.cloth.resolution[0]),
             u64::from(self.cloth.resolution[1]),
         );
-        let springs = (r - 1) * c
-            + r * (c - 1)
-            + 2 * (r - 1) * (c - 1)
-            + r * c.saturating_sub(2)
-            + c * r.saturating_sub(2);
-        (r * c, springs)
+        let (r1, c1) = (r.saturating_sub(1), c.saturating_sub(1));
+        // Warp, weft, both diagonals, both bends.
+        let springs = [
+            r1.saturating_mul(c),
+            r.saturating_mul(c1),
+            r1.saturating_mul(c1).saturating_mul(2),
+            r.saturating_mul(c.saturating_sub(2)),
+            c.saturating_mul(r.saturating_sub(2)),
+        ]
+        .into_iter()
+        .fold(0_u64, u64::saturating_add);
+        (r.saturating_mul(c), springs)
     }
 
     /// Bytes the scene's simulation needs, roughly: [`memory_estimate`] of its particles and
@@ -919,13 +1013,7 @@ impl Scene {
         let Some(sc) = self.solver.self_collision else {
             return base;
         };
-        let c = &self.cloth;
-        let [rows, cols] = c.resolution.map(|n| f64::from(n.max(2) - 1));
-        let (dx, dy) = match (c.spacing, c.size) {
-            (Some([along_cols, along_rows]), _) => (f64::from(along_cols), f64::from(along_rows)),
-            (None, Some([w, h])) => (f64::from(w) / cols, f64::from(h) / rows),
-            (None, None) => (1.0 / cols, 1.0 / rows),
-        };
+        let (dx, dy) = self.cloth.spacing_of();
         let reach = 2.0 * f64::from(sc.thickness);
         let per_particle = (std::f64::consts::PI * reach * reach / (2.0 * dx * dy)).max(12.0);
         // Saturating: a degenerate spacing (refused when the cloth is built) gives u64::MAX.
@@ -933,7 +1021,19 @@ impl Scene {
     }
 
     fn check(&self) -> std::result::Result<(), Invalid> {
-        positive("duration", self.duration)?;
+        if !(self.duration.is_finite() && self.duration > 0.0 && self.duration <= MAX_DURATION) {
+            return Err(invalid(
+                "duration",
+                self.duration,
+                &format!("a number of seconds in (0, {MAX_DURATION:e}]"),
+            ));
+        }
+        if self.description.contains(['\n', '\r']) {
+            return Err(problem(
+                "description",
+                "more than one line: allowed one line of text".into(),
+            ));
+        }
         let c = &self.cloth;
         for (i, &n) in c.resolution.iter().enumerate() {
             if !(2..=MAX_GRID_SIDE as u32).contains(&n) {
@@ -986,10 +1086,11 @@ impl Scene {
         finite3("cloth.velocity", c.velocity)?;
         match (c.density, c.mass_per_particle) {
             (Some(_), Some(_)) => {
-                return Err(invalid(
+                return Err(problem(
                     "cloth.mass_per_particle",
-                    c.mass_per_particle,
-                    "either `density` or `mass_per_particle`, not both",
+                    "given with `density`: allowed either `density` or `mass_per_particle`, \
+                     not both"
+                        .into(),
                 ));
             }
             (Some(d), None) => positive("cloth.density", d)?,
@@ -1031,101 +1132,125 @@ impl Scene {
         }
         for (i, col) in self.colliders.iter().enumerate() {
             let key = |k: &str| format!("colliders[{i}].{k}");
+            let max = crate::collide::MAX_COLLIDER_EXTENT;
+            let point = |k: &str, v: [f32; 3]| {
+                if v.iter().all(|x| x.is_finite() && x.abs() <= max) {
+                    Ok(())
+                } else {
+                    Err(invalid(
+                        key(k),
+                        v,
+                        &format!("three finite numbers of magnitude at most {max:e} m"),
+                    ))
+                }
+            };
+            let size = |k: &str, v: f32| {
+                if v.is_finite() && v > 0.0 && v <= max {
+                    Ok(())
+                } else {
+                    Err(invalid(
+                        key(k),
+                        v,
+                        &format!("a finite number > 0 and at most {max:e} m"),
+                    ))
+                }
+            };
+            // The keys each kind reads (`rotation` and the motion keys have defaults).
+            let (kind, needs): (&str, &[&str]) = match col.kind {
+                ColliderKind::Sphere => ("sphere", &["center", "radius"]),
+                ColliderKind::Capsule => ("capsule", &["a", "b", "radius"]),
+                ColliderKind::Box => ("box", &["center", "half_extents"]),
+                ColliderKind::Plane => ("plane", &["point", "normal"]),
+                ColliderKind::Mesh => ("mesh", &["file"]),
+            };
+            let given = [
+                ("center", col.center.is_some()),
+                ("radius", col.radius.is_some()),
+                ("a", col.a.is_some()),
+                ("b", col.b.is_some()),
+                ("half_extents", col.half_extents.is_some()),
+                ("point", col.point.is_some()),
+                ("normal", col.normal.is_some()),
+                ("file", col.file.is_some()),
+                ("rotation", col.rotation != [0.0; 3]),
+            ];
+            let optional: &[&str] = match col.kind {
+                ColliderKind::Box => &["rotation"],
+                ColliderKind::Mesh => &["center", "rotation"],
+                _ => &[],
+            };
+            for (k, present) in given {
+                if !present && needs.contains(&k) {
+                    return Err(problem(
+                        key(k),
+                        format!("missing: a {kind} needs `{}`", needs.join("`, `")),
+                    ));
+                }
+                if present && !needs.contains(&k) && !optional.contains(&k) {
+                    let mut keys: Vec<&str> = needs.iter().chain(optional).copied().collect();
+                    keys.extend(["velocity", "angular_velocity", "thickness", "friction"]);
+                    return Err(problem(
+                        key(k),
+                        format!(
+                            "not a key of a {kind}: a {kind} reads `{}` (and `type`)",
+                            keys.join("`, `")
+                        ),
+                    ));
+                }
+            }
             match col.kind {
                 ColliderKind::Sphere => {
-                    let center = col.center.ok_or_else(|| {
-                        invalid(
-                            key("center"),
-                            "missing",
-                            "a sphere needs `center` and `radius`",
-                        )
-                    })?;
-                    finite3(&key("center"), center)?;
-                    let r = col.radius.ok_or_else(|| {
-                        invalid(
-                            key("radius"),
-                            "missing",
-                            "a sphere needs `center` and `radius`",
-                        )
-                    })?;
-                    positive(&key("radius"), r)?;
+                    point("center", col.center.unwrap_or_default())?;
+                    size("radius", col.radius.unwrap_or_default())?;
                 }
                 ColliderKind::Capsule => {
-                    for (k, v) in [("a", col.a), ("b", col.b)] {
-                        let v = v.ok_or_else(|| {
-                            invalid(key(k), "missing", "a capsule needs `a`, `b` and `radius`")
-                        })?;
-                        finite3(&key(k), v)?;
-                    }
-                    let r = col.radius.ok_or_else(|| {
-                        invalid(
-                            key("radius"),
-                            "missing",
-                            "a capsule needs `a`, `b` and `radius`",
-                        )
-                    })?;
-                    positive(&key("radius"), r)?;
+                    point("a", col.a.unwrap_or_default())?;
+                    point("b", col.b.unwrap_or_default())?;
+                    size("radius", col.radius.unwrap_or_default())?;
                 }
                 ColliderKind::Mesh => {
-                    match &col.file {
-                        Some(f) if !f.trim().is_empty() => {}
-                        _ => {
-                            return Err(invalid(
-                                key("file"),
-                                "missing",
-                                "a mesh needs `file`, an OBJ path relative to the scene",
-                            ));
-                        }
+                    if col.file.as_deref().is_none_or(|f| f.trim().is_empty()) {
+                        return Err(problem(
+                            key("file"),
+                            "empty: a mesh needs `file`, an OBJ path relative to the scene".into(),
+                        ));
                     }
-                    finite3(&key("center"), col.center.unwrap_or_default())?;
+                    point("center", col.center.unwrap_or_default())?;
                     finite3(&key("rotation"), col.rotation)?;
                 }
                 ColliderKind::Box => {
-                    let center = col.center.ok_or_else(|| {
-                        invalid(
-                            key("center"),
-                            "missing",
-                            "a box needs `center` and `half_extents`",
-                        )
-                    })?;
-                    finite3(&key("center"), center)?;
-                    let h = col.half_extents.ok_or_else(|| {
-                        invalid(
+                    point("center", col.center.unwrap_or_default())?;
+                    let h = col.half_extents.unwrap_or_default();
+                    if !h.iter().all(|x| x.is_finite() && *x > 0.0 && *x <= max) {
+                        return Err(invalid(
                             key("half_extents"),
-                            "missing",
-                            "a box needs `center` and `half_extents`",
-                        )
-                    })?;
-                    if !h.iter().all(|x| x.is_finite() && *x > 0.0) {
-                        return Err(invalid(key("half_extents"), h, "three finite numbers > 0"));
+                            h,
+                            &format!("three finite numbers > 0 and at most {max:e} m"),
+                        ));
                     }
                     finite3(&key("rotation"), col.rotation)?;
                 }
                 ColliderKind::Plane => {
-                    let point = col.point.ok_or_else(|| {
-                        invalid(
-                            key("point"),
-                            "missing",
-                            "a plane needs `point` and `normal`",
-                        )
-                    })?;
-                    finite3(&key("point"), point)?;
-                    let normal = col.normal.ok_or_else(|| {
-                        invalid(
+                    point("point", col.point.unwrap_or_default())?;
+                    let normal = col.normal.unwrap_or_default();
+                    if crate::collide::unit_normal(Vec3::from(normal)).is_none() {
+                        return Err(invalid(
                             key("normal"),
-                            "missing",
-                            "a plane needs `point` and `normal`",
-                        )
-                    })?;
-                    finite3(&key("normal"), normal)?;
-                    if Vec3::from(normal).length() < 1e-6 {
-                        return Err(invalid(key("normal"), normal, "a non-zero vector"));
+                            normal,
+                            "three finite numbers, the largest over 1e-6 in magnitude",
+                        ));
                     }
                 }
             }
             finite3(&key("velocity"), col.velocity)?;
             finite3(&key("angular_velocity"), col.angular_velocity)?;
-            non_negative(&key("thickness"), col.thickness)?;
+            if !(col.thickness.is_finite() && (0.0..=max).contains(&col.thickness)) {
+                return Err(invalid(
+                    key("thickness"),
+                    col.thickness,
+                    &format!("a finite number >= 0 and at most {max:e} m"),
+                ));
+            }
             non_negative(&key("friction.static"), col.friction.static_coefficient)?;
             non_negative(&key("friction.kinetic"), col.friction.kinetic_coefficient)?;
         }
@@ -1135,6 +1260,20 @@ impl Scene {
             return Err(invalid("solver.kind", &s.kind, &names.join(", ")));
         }
         positive("solver.dt", s.dt)?;
+        let fewest = match &s.substeps {
+            SubstepsDesc::Count(n) => *n,
+            SubstepsDesc::Word(_) => 1,
+        };
+        if s.dt / (fewest as f32) < crate::config::MIN_SUBSTEP_DT {
+            return Err(invalid(
+                "solver.dt",
+                s.dt,
+                &format!(
+                    "a step whose substeps (dt / {fewest}) are at least {:e} s",
+                    crate::config::MIN_SUBSTEP_DT
+                ),
+            ));
+        }
         match &s.substeps {
             SubstepsDesc::Count(n) if !(1..=crate::config::MAX_SUBSTEPS).contains(n) => {
                 return Err(invalid(
@@ -1217,6 +1356,23 @@ impl Scene {
         positive("solver.limits.max_speed", s.limits.max_speed)?;
         if let Some(sc) = s.self_collision {
             positive("solver.self_collision.thickness", sc.thickness)?;
+            // `Simulation::new`'s bound, known here from the grid's spacing (the largest
+            // structural rest length of a flat grid), so that the error points into the file.
+            let (dx, dy) = self.cloth.spacing_of();
+            let spacing = dx.max(dy);
+            let most = f64::from(crate::sim::MAX_SELF_COLLISION_SPACINGS) * spacing;
+            if f64::from(sc.thickness) > most {
+                return Err(invalid(
+                    "solver.self_collision.thickness",
+                    sc.thickness,
+                    &format!(
+                        "(0, {most:.4}] m: at most {} grid spacings of {spacing:.4} m (use \
+                         about one spacing; a thicker layer makes the pair search's time and \
+                         memory grow with its square)",
+                        crate::sim::MAX_SELF_COLLISION_SPACINGS
+                    ),
+                ));
+            }
             non_negative("solver.self_collision.friction", sc.friction)?;
         }
         if let Some(cam) = &self.camera {
@@ -1604,8 +1760,40 @@ fn de_error(source: &str, file: &str, e: &toml::de::Error) -> ClothError {
             message.push_str(&hint);
         }
     }
-    let key = if key.len() > 60 { String::new() } else { key };
-    scene_error(file, pos, &key, message)
+    // A field missing from the top level is reported at the document's start, where the
+    // first key is: it is not that key's fault.
+    let top_level = message.starts_with("missing field") && e.span().is_some_and(|s| s.start == 0);
+    let key = if key.len() > 60 || top_level {
+        String::new()
+    } else {
+        key
+    };
+    scene_error(file, pos, &key, plain_types(&message))
+}
+
+/// serde's type names in `message` in words (`expected f32` → `expected a number`).
+fn plain_types(message: &str) -> String {
+    let mut out = message.to_owned();
+    for (rust, words) in [
+        ("expected f32", "expected a number"),
+        ("expected f64", "expected a number"),
+        ("expected u32", "expected a whole number 0 ..= 4294967295"),
+        ("expected u64", "expected a whole number >= 0"),
+        ("expected usize", "expected a whole number >= 0"),
+        ("expected a boolean", "expected true or false"),
+        ("expected a sequence", "expected an array"),
+        ("expected a map", "expected a table"),
+    ] {
+        out = out.replace(rust, words);
+    }
+    // `expected struct ClothDesc` and the like: a table of keys.
+    if let Some(at) = out.find("expected struct ") {
+        let end = out[at + 16..]
+            .find(|c: char| !c.is_alphanumeric() && c != '_')
+            .map_or(out.len(), |e| at + 16 + e);
+        out.replace_range(at..end, "expected a table");
+    }
+    out
 }
 
 /// The dotted key path whose key or value holds byte `at` of `source` (the deepest one).
@@ -1775,6 +1963,21 @@ fn override_value(value: &str) -> Option<toml::Value> {
         .ok()
         .and_then(|mut t| t.remove("v"))
         .or_else(|| bare_word(value).map(|w| toml::Value::String(w.to_owned())))
+}
+
+/// Why an override's `value` is not a TOML value, in words.
+fn not_a_value(value: &str) -> String {
+    let v = value.trim();
+    let why = match v.chars().next() {
+        Some('[') if !v.ends_with(']') => "an array needs its closing `]`: [1, 2]",
+        Some('{') if !v.ends_with('}') => "a table needs its closing `}`: {a = 1}",
+        Some('[' | '{') => "check the items and the commas between them",
+        Some(c) if c.is_ascii_digit() || matches!(c, '-' | '+' | '.') => {
+            "a number must be finite and in range (up to about 1.8e308), written like 0.5 or 1e-3"
+        }
+        _ => "a string other than a bare word needs quotes: name=\"my drape\"",
+    };
+    format!("{value:?} is not a TOML value ({why})")
 }
 
 /// A value that is not TOML but a bare word (`xpbd`, `symplectic-euler`, `auto`: letters,

@@ -147,6 +147,28 @@ fn check_for_cloth(config: &SimConfig, topology: &Topology) -> Result<()> {
     Ok(())
 }
 
+/// Every velocity at most `config.limits.max_speed`: a faster particle would make every step
+/// fail the instability check.
+fn check_speeds(
+    name: &str,
+    velocity: impl IntoIterator<Item = Vec3>,
+    config: &SimConfig,
+) -> Result<()> {
+    let most = config.limits.max_speed;
+    match velocity
+        .into_iter()
+        .enumerate()
+        .find(|(_, v)| v.as_dvec3().length() > f64::from(most))
+    {
+        Some((i, v)) => Err(ClothError::invalid(
+            format!("{name}[{i}]"),
+            v,
+            format!("a speed of at most {most} m/s (`limits.max_speed`)"),
+        )),
+        None => Ok(()),
+    }
+}
+
 impl Simulation {
     /// The state needed to continue this simulation later to the same bits.
     #[must_use]
@@ -213,6 +235,11 @@ impl Simulation {
                 "finite positions and velocities",
             ));
         }
+        check_speeds(
+            "state.velocity",
+            state.velocity.iter().map(|&v| Vec3::from(v)),
+            &self.config,
+        )?;
         if !(state.time.is_finite() && state.time >= 0.0) {
             return Err(ClothError::invalid(
                 "state.time",
@@ -273,9 +300,21 @@ impl Simulation {
     }
 
     /// A simulation of `cloth` with `config` (validated) and no colliders.
+    ///
+    /// # Errors
+    /// [`ClothError::InvalidArgument`] for a bad `config` ([`SimConfig::validate`]), a cloth
+    /// whose parts do not fit together ([`Cloth::validate`]: its fields are public), a
+    /// self-collision thickness too large for the cloth's spacing, or a particle faster
+    /// than `config.limits.max_speed` (every step would be reported unstable).
     pub fn new(cloth: Cloth, config: SimConfig) -> Result<Self> {
         config.validate()?;
+        cloth.validate()?;
         check_for_cloth(&config, &cloth.topology)?;
+        check_speeds(
+            "cloth.particles.velocity",
+            cloth.particles.velocity.iter().copied(),
+            &config,
+        )?;
         let n = cloth.particles.len();
         let mut sim = Self {
             particles: cloth.particles,
@@ -352,15 +391,11 @@ impl Simulation {
     /// Replaces collider `index` (validated).
     pub fn set_collider(&mut self, index: usize, collider: Collider) -> Result<()> {
         if index >= self.colliders.len() {
-            return Err(ClothError::invalid(
-                "collider index",
-                index,
-                format!(
-                    "0 ..= {} (there are {} colliders)",
-                    self.colliders.len() as i64 - 1,
-                    self.colliders.len()
-                ),
-            ));
+            let allowed = match self.colliders.len() {
+                0 => "none: there are no colliders (add one with `add_collider`)".to_string(),
+                len => format!("0 ..= {} (there are {len} colliders)", len - 1),
+            };
+            return Err(ClothError::invalid("collider index", index, allowed));
         }
         self.colliders[index] = collider.validate(index)?;
         Ok(())
@@ -463,10 +498,21 @@ impl Simulation {
         Ok(())
     }
 
-    /// Sets the velocity of particle `i` (m/s). Pinned particles ignore it until unpinned.
+    /// Sets the velocity of particle `i` (m/s), at most `limits.max_speed` fast. Pinned
+    /// particles ignore it until unpinned.
     pub fn set_velocity(&mut self, i: usize, velocity: Vec3) -> Result<()> {
         self.check_index("set_velocity", i)?;
         check::finite_vec("set_velocity.velocity", velocity)?;
+        if velocity.as_dvec3().length() > f64::from(self.config.limits.max_speed) {
+            return Err(ClothError::invalid(
+                "set_velocity.velocity",
+                velocity,
+                format!(
+                    "a speed of at most {} m/s (`limits.max_speed`)",
+                    self.config.limits.max_speed
+                ),
+            ));
+        }
         if !self.particles.is_pinned(i) {
             self.particles.velocity[i] = velocity;
         }
@@ -669,8 +715,52 @@ impl Simulation {
                 }
             }
 
-            // 5. diagnostics and instability check
-            measure(config, topology, particles, colliders, measure_lengths)
+            // 5. diagnostics and instability check: a collider whose prescribed motion carried
+            //    it past f32's range fails the step first (the particles it touched then went
+            //    bad because of it), then the particles and springs, then a solve that
+            //    overflowed.
+            let (stats, bad) = measure(config, topology, particles, colliders, measure_lengths);
+            let overflow = solver.take_overflow();
+            let collider = colliders
+                .iter()
+                .position(|c| !c.shape.is_finite())
+                .map(|i| crate::diagnostics::Instability {
+                    particle: 0,
+                    reason: format!(
+                        "collider {i}'s pose became non-finite (its velocity or angular \
+                         velocity carried it past f32's range): {:?}",
+                        colliders[i].shape
+                    ),
+                });
+            let bad = collider.or(bad).or_else(|| {
+                if !overflow {
+                    return None;
+                }
+                // Name the particle whose acceleration is the largest: the forces that were
+                // too large to solve for.
+                let mut force = vec![Vec3::ZERO; particles.len()];
+                crate::forces::accumulate(
+                    config,
+                    topology,
+                    particles,
+                    config.air.wind_at(time),
+                    &mut force,
+                );
+                let accel =
+                    |i: usize| f64::from(particles.inv_mass[i]) * force[i].as_dvec3().length();
+                let i =
+                    (0..particles.len()).fold(0, |a, i| if accel(i) > accel(a) { i } else { a });
+                Some(crate::diagnostics::Instability {
+                    particle: i as u32,
+                    reason: format!(
+                        "implicit Euler's linear solve overflowed f32: the largest \
+                         acceleration, on this particle, is {:.3e} m/s² (forces this large \
+                         cannot be solved for)",
+                        accel(i)
+                    ),
+                })
+            });
+            (stats, bad)
         });
         if let Some(bad) = bad {
             self.particles.position.clone_from(&self.backup_position);
@@ -692,7 +782,7 @@ impl Simulation {
             });
         }
         self.pin_target.fill(None);
-        self.steps += 1;
+        self.steps = self.steps.saturating_add(1);
         self.time += f64::from(dt);
         stats.step = self.steps;
         stats.time = self.time;

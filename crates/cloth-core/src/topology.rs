@@ -81,6 +81,9 @@ pub struct Spring {
 
 /// Area-weighted vertex normals of a triangle mesh, unit length, into `out` (resized). A
 /// vertex in no triangle (or only in degenerate ones) gets +Y, so normals are always usable.
+///
+/// # Panics
+/// When a triangle holds an index that is not below `position.len()`.
 pub fn vertex_normals(position: &[glam::Vec3], triangles: &[[u32; 3]], out: &mut Vec<glam::Vec3>) {
     out.clear();
     out.resize(position.len(), glam::Vec3::ZERO);

@@ -77,8 +77,9 @@ impl TriMesh {
     ///
     /// # Errors
     /// [`ClothError::InvalidArgument`] naming the offending entry when there are no
-    /// triangles, a vertex is not finite, an index is out of range or a triangle has zero
-    /// area.
+    /// triangles, a vertex is not finite or farther than
+    /// [`MAX_COLLIDER_EXTENT`](super::MAX_COLLIDER_EXTENT) from the origin along an axis, an
+    /// index is out of range or a triangle has zero area.
     pub fn new(vertices: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Result<Self> {
         if triangles.is_empty() {
             return Err(ClothError::invalid(
@@ -87,11 +88,15 @@ impl TriMesh {
                 "at least one triangle",
             ));
         }
-        if let Some(i) = vertices.iter().position(|v| !v.is_finite()) {
+        let max = super::MAX_COLLIDER_EXTENT;
+        if let Some(i) = vertices
+            .iter()
+            .position(|v| !(v.is_finite() && v.abs().max_element() <= max))
+        {
             return Err(ClothError::invalid(
                 format!("mesh.vertices[{i}]"),
                 vertices[i],
-                "finite coordinates",
+                format!("finite coordinates of magnitude at most {max:e} m"),
             ));
         }
         let n = vertices.len();

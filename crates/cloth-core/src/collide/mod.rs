@@ -121,10 +121,12 @@ impl Shape {
                 };
                 let d = p - (a + t * ab);
                 let len = d.length();
+                // On the axis every direction across it is a nearest one: take one that is
+                // (`any_orthonormal_vector` needs a unit axis; a point capsule has none).
                 let n = if len > 0.0 {
                     d / len
                 } else {
-                    ab.any_orthonormal_vector()
+                    ab.normalize_or(Vec3::Y).any_orthonormal_vector()
                 };
                 (len - radius, n)
             }
@@ -196,6 +198,24 @@ impl Shape {
         }
     }
 
+    /// Every coordinate, size and rotation of the shape finite (a mesh's own vertices are
+    /// checked when it is made).
+    pub(crate) fn is_finite(&self) -> bool {
+        match *self {
+            Shape::Sphere { center, radius } => center.is_finite() && radius.is_finite(),
+            Shape::Plane { point, normal } => point.is_finite() && normal.is_finite(),
+            Shape::Capsule { a, b, radius } => a.is_finite() && b.is_finite() && radius.is_finite(),
+            Shape::Box {
+                center,
+                half_extents,
+                rotation,
+            } => center.is_finite() && half_extents.is_finite() && rotation.is_finite(),
+            Shape::Mesh {
+                position, rotation, ..
+            } => position.is_finite() && rotation.is_finite(),
+        }
+    }
+
     fn translate(&mut self, by: Vec3) {
         match self {
             Shape::Sphere { center, .. } | Shape::Box { center, .. } => *center += by,
@@ -225,6 +245,12 @@ impl Shape {
     }
 }
 
+/// Largest magnitude of a collider's coordinates and sizes (centre, point, axis ends,
+/// position, radius, half extents, thickness, and a mesh's vertices), m: a million
+/// kilometres, far beyond any scene, and far below where the squared distances the contact
+/// passes compute overflow f32 (about 1.8·10¹⁹ m).
+pub const MAX_COLLIDER_EXTENT: f32 = 1.0e9;
+
 /// Depth below the contact surface within which the discrete contact passes find mesh
 /// contacts, m (see [`Collider::contact_range`]).
 pub const CONTACT_MARGIN: f32 = 0.05;
@@ -245,6 +271,17 @@ pub struct Collider {
     pub thickness: f32,
     /// Friction against the cloth. Default [`Friction::default`].
     pub friction: Friction,
+}
+
+/// `normal` scaled to unit length, when it is finite and its largest component is over
+/// 10⁻⁶ in magnitude (scaled by that component first, so that no square overflows or
+/// underflows): the plane normals of the API and of scene files.
+pub(crate) fn unit_normal(normal: Vec3) -> Option<Vec3> {
+    let largest = normal.abs().max_element();
+    if !(normal.is_finite() && largest > 1e-6) {
+        return None;
+    }
+    Some((normal / largest).normalize())
 }
 
 impl Collider {
@@ -350,38 +387,48 @@ impl Collider {
     /// Checks every field (naming the collider by `index`) and normalises a plane's normal.
     pub fn validate(mut self, index: usize) -> Result<Self> {
         let name = |field: &str| format!("colliders[{index}].{field}");
+        let max = MAX_COLLIDER_EXTENT;
+        let point = |field: &str, v: Vec3| check::bounded_vec(&name(field), v, max);
+        let size = |field: &str, v: f32| {
+            if v.is_finite() && v > 0.0 && v <= max {
+                Ok(())
+            } else {
+                Err(ClothError::invalid(
+                    name(field),
+                    v,
+                    format!("a finite number > 0 and at most {max:e} m"),
+                ))
+            }
+        };
         match &mut self.shape {
             Shape::Sphere { center, radius } => {
-                check::finite_vec(&name("center"), *center)?;
-                check::positive(&name("radius"), *radius)?;
+                point("center", *center)?;
+                size("radius", *radius)?;
             }
-            Shape::Plane { point, normal } => {
-                check::finite_vec(&name("point"), *point)?;
-                check::finite_vec(&name("normal"), *normal)?;
-                let len = normal.length();
-                if !(len.is_finite() && len > 1e-6) {
-                    return Err(ClothError::invalid(
+            Shape::Plane { point: p, normal } => {
+                point("point", *p)?;
+                *normal = unit_normal(*normal).ok_or_else(|| {
+                    ClothError::invalid(
                         name("normal"),
                         *normal,
-                        "a non-zero finite vector",
-                    ));
-                }
-                *normal /= len;
+                        "a non-zero finite vector (its largest component over 1e-6 in magnitude)",
+                    )
+                })?;
             }
             Shape::Capsule { a, b, radius } => {
-                check::finite_vec(&name("a"), *a)?;
-                check::finite_vec(&name("b"), *b)?;
-                check::positive(&name("radius"), *radius)?;
+                point("a", *a)?;
+                point("b", *b)?;
+                size("radius", *radius)?;
             }
             Shape::Box {
                 center,
                 half_extents,
                 rotation,
             } => {
-                check::finite_vec(&name("center"), *center)?;
-                check::positive(&name("half_extents.x"), half_extents.x)?;
-                check::positive(&name("half_extents.y"), half_extents.y)?;
-                check::positive(&name("half_extents.z"), half_extents.z)?;
+                point("center", *center)?;
+                size("half_extents.x", half_extents.x)?;
+                size("half_extents.y", half_extents.y)?;
+                size("half_extents.z", half_extents.z)?;
                 if !rotation.is_finite() || (rotation.length() - 1.0).abs() > 1e-3 {
                     return Err(ClothError::invalid(
                         name("rotation"),
@@ -394,7 +441,7 @@ impl Collider {
             Shape::Mesh {
                 position, rotation, ..
             } => {
-                check::finite_vec(&name("position"), *position)?;
+                point("position", *position)?;
                 if !rotation.is_finite() || (rotation.length() - 1.0).abs() > 1e-3 {
                     return Err(ClothError::invalid(
                         name("rotation"),
@@ -407,7 +454,13 @@ impl Collider {
         }
         check::finite_vec(&name("velocity"), self.velocity)?;
         check::finite_vec(&name("angular_velocity"), self.angular_velocity)?;
-        check::non_negative(&name("thickness"), self.thickness)?;
+        if !(self.thickness.is_finite() && (0.0..=max).contains(&self.thickness)) {
+            return Err(ClothError::invalid(
+                name("thickness"),
+                self.thickness,
+                format!("a finite number >= 0 and at most {max:e} m"),
+            ));
+        }
         check::non_negative(
             &name("friction.static_coefficient"),
             self.friction.static_coefficient,

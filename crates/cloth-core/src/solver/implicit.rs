@@ -151,6 +151,9 @@ pub(crate) struct CgStats {
     pub residual: f32,
     /// Whether the residual reached the tolerance.
     pub converged: bool,
+    /// Whether the solve's dot products overflowed (forces beyond what an f32 solve holds:
+    /// its Δv is then meaningless, and the step fails).
+    pub overflowed: bool,
 }
 
 impl CgStats {
@@ -166,6 +169,7 @@ impl CgStats {
             iterations,
             residual,
             converged: delta <= tol2 * delta0,
+            overflowed: !(delta.is_finite() && delta0.is_finite()),
         }
     }
 }

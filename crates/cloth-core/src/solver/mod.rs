@@ -107,12 +107,22 @@ pub(crate) struct Solver {
     start: Vec<Vec3>,
     /// Scratch of the explicit integrators' grid fast path.
     grid: grid_kernel::GridScratch,
+    /// Whether a substep of the current step could not be solved in f32 (implicit Euler's
+    /// linear solve overflowed); [`Solver::take_overflow`].
+    overflow: bool,
 }
 
 impl Solver {
     /// Starts a step: resets the solver figures.
     pub fn begin_step(&mut self) {
         self.stats = SolverStats::default();
+        self.overflow = false;
+    }
+
+    /// Whether a substep of this step could not be solved in f32 (implicit Euler's linear
+    /// solve overflowed, leaving its Δv meaningless): the step must fail. Clears the flag.
+    pub fn take_overflow(&mut self) -> bool {
+        std::mem::take(&mut self.overflow)
     }
 
     /// Ends a step: the state a fast path kept in its own arrays goes back to the particles.
@@ -195,6 +205,7 @@ impl Solver {
                 self.stats.iterations = self.stats.iterations.max(cg.iterations);
                 self.stats.residual = self.stats.residual.max(cg.residual);
                 self.stats.converged &= cg.converged;
+                self.overflow |= cg.overflowed;
             }
             Integrator::Xpbd => {
                 self.stats.iterations = ctx.config.xpbd.iterations;

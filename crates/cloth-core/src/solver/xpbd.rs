@@ -401,9 +401,18 @@ fn solve_limits(p: &mut crate::particles::Particles, limits: &[Tether]) {
     }
 }
 
+/// Largest α̃ = 1/(k·h²) of a spring XPBD projects, and largest γ = c/(k·h) it uses. A
+/// spring more compliant than that within a substep moves its ends by less than 10⁻³⁰ of its
+/// constraint's value times their inverse masses: nothing an f32 position can show, so it
+/// is left out like a spring of no stiffness (beyond it α̃ overflows f32, and α̃ = ∞ with
+/// γ = ∞ would make a correction ∞/∞). A larger γ gives the same correction to f32
+/// precision (the rigid dashpot's limit Δλ → −rate/w), so γ is capped there.
+const MAX_COMPLIANCE: f32 = 1.0e30;
+
 /// XPBD's constants of a spring kind at substep `h`: `(α̃, γ)` with α̃ = α/h², α = 1/k, and
-/// γ = α̃·β̃/h with β̃ = h²·β, β = c (the dashpot). `None` when the kind has no stiffness (or
-/// the springs are switched off). Shared by the reference and grid paths.
+/// γ = α̃·β̃/h with β̃ = h²·β, β = c (the dashpot), capped at [`MAX_COMPLIANCE`]. `None` when
+/// the kind has no stiffness, the springs are switched off, or α̃ is past
+/// [`MAX_COMPLIANCE`]. Shared by the reference and grid paths.
 pub(super) fn compliance(
     cfg: &crate::config::SimConfig,
     kind: SpringKind,
@@ -423,7 +432,11 @@ pub(super) fn compliance(
     } else {
         0.0
     };
-    Some((1.0 / (k * h * h), c / (k * h)))
+    let alpha = 1.0 / (k * h * h);
+    if alpha > MAX_COMPLIANCE {
+        return None;
+    }
+    Some((alpha, (c / (k * h)).min(MAX_COMPLIANCE)))
 }
 
 fn solve_tethers(p: &mut crate::particles::Particles, tethers: &[Tether]) {
