@@ -7,6 +7,10 @@
 use cloth_core::glam::camera::rh::{proj::directx, view};
 use cloth_core::glam::{Mat4, Vec2, Vec3, Vec4Swizzles};
 
+/// Below this sine of the angle between the view direction and [`Camera::up`], the two count
+/// as parallel and [`Camera::view_up`] falls back to another up direction (0.057°).
+pub const PARALLEL_SINE: f32 = 1e-3;
+
 /// An eye looking at a target.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
@@ -36,22 +40,55 @@ impl Camera {
         Self::new(target + dir * distance, target)
     }
 
-    /// The world-to-view matrix.
+    /// The world-to-view matrix, built from [`forward`](Self::forward) and
+    /// [`view_up`](Self::view_up): finite for every camera with a finite eye and target, also
+    /// one looking straight along `up` or with the eye on the target.
     #[must_use]
     pub fn view(&self) -> Mat4 {
-        view::look_at_mat4(self.eye, self.target, self.up)
+        view::look_to_mat4(self.eye, self.forward(), self.view_up())
     }
 
-    /// Unit vector from the eye towards the target.
+    /// Unit vector from the eye towards the target (−Z when the eye is on the target).
     #[must_use]
     pub fn forward(&self) -> Vec3 {
         (self.target - self.eye).normalize_or(Vec3::NEG_Z)
     }
 
+    /// The unit up direction the view is built with: [`up`](Self::up), unless the view looks
+    /// along it (within [`PARALLEL_SINE`]), where it gives no orientation. Then the top of the
+    /// image points the way a camera facing −Z shows it when tilted to straight down or
+    /// straight up (with `up` = +Y: −Z looking down, +Z looking up), which is also how the
+    /// view looks just before the pole when the eye comes to it from the +Z side.
+    #[must_use]
+    pub fn view_up(&self) -> Vec3 {
+        let up = self.up.normalize_or(Vec3::Y);
+        let f = self.forward();
+        if f.cross(up).length_squared() > PARALLEL_SINE * PARALLEL_SINE {
+            return up;
+        }
+        // +Z made orthogonal to `up` (any orthogonal vector if `up` is along Z)
+        let side = (Vec3::Z - up * up.z).normalize_or(up.any_orthonormal_vector());
+        side * f.dot(up).signum()
+    }
+
     /// Unit vector to the right of the view.
     #[must_use]
     pub fn right(&self) -> Vec3 {
-        self.forward().cross(self.up).normalize_or(Vec3::X)
+        self.forward().cross(self.view_up()).normalize_or(Vec3::X)
+    }
+
+    /// The direction the camera faces, level (orthogonal to +Y, unit): the view direction
+    /// levelled, or, looking straight down or up, the direction the top (looking down) or the
+    /// bottom (looking up) of the image points to. The controllers turn from it.
+    #[must_use]
+    fn heading(&self) -> Vec3 {
+        let f = self.forward();
+        let level = Vec3::new(f.x, 0.0, f.z);
+        if level.length_squared() > PARALLEL_SINE * PARALLEL_SINE {
+            return level.normalize();
+        }
+        let u = self.view_up() * -f.y.signum();
+        Vec3::new(u.x, 0.0, u.z).normalize_or(Vec3::NEG_Z)
     }
 
     /// Distance from the eye to the target, m.
@@ -253,7 +290,10 @@ impl OrbitController {
         if r <= 0.0 {
             return;
         }
-        let mut yaw = offset.x.atan2(offset.z);
+        // the eye's side of the target: behind the camera's heading (also looking straight
+        // down or up, where the offset has no level part to take it from)
+        let back = -camera.heading();
+        let mut yaw = back.x.atan2(back.z);
         let mut pitch = (offset.y / r).clamp(-1.0, 1.0).asin();
         yaw -= dx * self.rotate_speed;
         let limit = 89f32.to_radians();
@@ -361,7 +401,8 @@ impl FlyController {
     pub fn look(&self, camera: &mut Camera, dx: f32, dy: f32) {
         let r = camera.distance().max(1e-3);
         let f = camera.forward();
-        let mut yaw = f.x.atan2(f.z);
+        let heading = camera.heading();
+        let mut yaw = heading.x.atan2(heading.z);
         let limit = 89f32.to_radians();
         let mut pitch = f.y.clamp(-1.0, 1.0).asin();
         yaw -= dx * self.look_speed;
@@ -396,6 +437,83 @@ mod tests {
         assert!((0.0..1.0).contains(&ndc.z), "{ndc}");
         let px = cam.project(&proj, [320, 240], cam.target).unwrap();
         assert!((px - Vec2::new(160.0, 120.0)).length() < 1e-3, "{px}");
+    }
+
+    /// Where `point` lands in normalised device coordinates.
+    fn ndc(cam: &Camera, proj: &Projection, point: Vec3) -> Vec3 {
+        let clip = cam.view_proj(proj) * point.extend(1.0);
+        clip.xyz() / clip.w
+    }
+
+    /// A camera straight above or below its target (view direction along `up`) built its view
+    /// from a degenerate basis: a NaN matrix, and `cloth render … --set
+    /// 'camera.eye=[0,3,0]' --set 'camera.target=[0,0,0]'` drew only the background.
+    #[test]
+    fn a_camera_straight_above_or_below_the_target_has_a_finite_view() {
+        let proj = Projection::new(320, 240, 45f32.to_radians());
+        let target = Vec3::new(0.2, 0.5, -0.1);
+        // (eye offset, where a point 0.1 m towards −Z of the target appears: the image's top
+        // points to −Z looking down, to +Z looking up, as the limit of a camera tilted to the
+        // pole from the +Z side)
+        for (offset, minus_z_up) in [(Vec3::Y * 3.0, true), (Vec3::NEG_Y * 2.0, false)] {
+            let cam = Camera::new(target + offset, target);
+            let view = cam.view();
+            assert!(view.is_finite(), "{offset}: {view}");
+            let c = ndc(&cam, &proj, target);
+            assert!(c.x.abs() < 1e-5 && c.y.abs() < 1e-5, "{offset}: {c}");
+            assert!((0.0..1.0).contains(&c.z), "{offset}: {c}");
+            let px = cam.project(&proj, [320, 240], target).unwrap();
+            assert!((px - Vec2::new(160.0, 120.0)).length() < 1e-3, "{px}");
+            let towards = ndc(&cam, &proj, target + Vec3::NEG_Z * 0.1);
+            assert!(towards.x.abs() < 1e-5, "{offset}: {towards}");
+            assert_eq!(towards.y > 0.0, minus_z_up, "{offset}: {towards}");
+            // the same orientation as a camera a hair short of the pole on the +Z side
+            let near = Camera::new(target + offset + Vec3::Z * 0.01, target);
+            let near_towards = ndc(&near, &proj, target + Vec3::NEG_Z * 0.1);
+            assert!(
+                (near_towards.y - towards.y).abs() < 0.05,
+                "{near_towards} vs {towards}"
+            );
+            let right = cam.right();
+            assert!(right.is_finite() && (right.length() - 1.0).abs() < 1e-5);
+            assert!(right.dot(cam.forward()).abs() < 1e-6);
+        }
+    }
+
+    /// An eye on the target (no direction to look in) still gives a finite view matrix.
+    #[test]
+    fn a_camera_with_its_eye_on_the_target_has_a_finite_view() {
+        let cam = Camera::new(Vec3::ONE, Vec3::ONE);
+        assert!(cam.view().is_finite());
+        assert_eq!(cam.forward(), Vec3::NEG_Z);
+        assert!(cam.view_proj(&Projection::new(320, 240, 1.0)).is_finite());
+    }
+
+    /// From straight above, the controllers turn the view without flipping the image: a
+    /// small drag keeps a point towards −Z at the top of the image.
+    #[test]
+    fn the_controllers_turn_smoothly_away_from_straight_down() {
+        let proj = Projection::new(320, 240, 45f32.to_radians());
+        let target = Vec3::ZERO;
+        let probe = Vec3::NEG_Z * 0.1;
+        for negative_zero in [false, true] {
+            // -0.0 - 0.0 = -0.0: the offset's atan2 read such an eye as the −Z side
+            let z = if negative_zero { -0.0 } else { 0.0 };
+            let straight = Camera::new(Vec3::new(z, 3.0, z), target);
+            let before = ndc(&straight, &proj, probe);
+            let mut orbit = straight;
+            OrbitController::default().rotate(&mut orbit, 0.0, -2.0);
+            let mut fly = straight;
+            FlyController::default().look(&mut fly, 0.0, 1.0);
+            for (name, cam) in [("orbit", orbit), ("fly", fly)] {
+                assert!(cam.view().is_finite(), "{name}");
+                let after = ndc(&cam, &proj, probe);
+                assert!(
+                    after.y > 0.0 && before.y > 0.0,
+                    "{name}: {before} → {after}"
+                );
+            }
+        }
     }
 
     #[test]

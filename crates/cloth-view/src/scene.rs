@@ -5,6 +5,10 @@ use cloth_core::glam::Vec3;
 use cloth_core::scene::{self, ColliderKind, Scene, SubstepsDesc};
 use cloth_core::{ClothError, Integrator, Simulation};
 
+/// A `[camera]` whose eye is closer than this to its target, m, has no direction to look in:
+/// [`SceneKind::start_view`] looks at the target from 2.5 m instead.
+pub const SAME_POINT: f32 = 1e-6;
+
 /// A scene to view: its name (a built-in name or the file path) and its description.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SceneKind {
@@ -123,7 +127,9 @@ impl SceneKind {
     /// Where the view starts: the camera and its vertical field of view (radians). The scene's
     /// `[camera]` (eye, target, `fov_degrees`); for the main built-in scenes (drape, hanging,
     /// peer-ball, flag) a hand-tuned framing at [`crate::FOVY`] instead, unless `--set camera…`
-    /// changed their `[camera]`; a scene without one is looked at from 2.5 m.
+    /// changed their `[camera]`; a scene without one is looked at from 2.5 m, and so is the
+    /// `[camera]`'s target when its eye is on it (closer than [`SAME_POINT`]: no direction to
+    /// look in).
     #[must_use]
     pub fn start_view(&self) -> (crate::Camera, f32) {
         let tuned = match self.name.as_str() {
@@ -138,10 +144,15 @@ impl SceneKind {
             (Some((target, distance)), _) => {
                 (crate::Camera::looking_at(target, distance), crate::FOVY)
             }
-            (None, Some(c)) => (
-                crate::Camera::new(Vec3::from(c.eye), Vec3::from(c.target)),
-                c.fov_degrees.to_radians(),
-            ),
+            (None, Some(c)) => {
+                let (eye, target) = (Vec3::from(c.eye), Vec3::from(c.target));
+                let camera = if eye.distance(target) < SAME_POINT {
+                    crate::Camera::looking_at(target, 2.5)
+                } else {
+                    crate::Camera::new(eye, target)
+                };
+                (camera, c.fov_degrees.to_radians())
+            }
             (None, None) => (
                 crate::Camera::looking_at(Vec3::from(self.scene.cloth.origin), 2.5),
                 crate::FOVY,
@@ -271,6 +282,22 @@ mod tests {
         let (cam, fovy) = fold.start_view();
         assert!(close(cam.eye, Vec3::from(c.eye)) && close(cam.target, Vec3::from(c.target)));
         assert!((fovy - 45f32.to_radians()).abs() < 1e-7);
+    }
+
+    /// `--set camera.eye=[0,3,0] --set camera.target=[0,3,0]` (eye on the target) gave a NaN
+    /// view matrix and a frame of background only: the view now looks at the target from
+    /// 2.5 m, with a finite view matrix.
+    #[test]
+    fn a_camera_with_its_eye_on_the_target_looks_at_it_from_a_distance() {
+        let set = [
+            "camera.eye=[0, 3, 0]".to_string(),
+            "camera.target=[0, 3, 0]".to_string(),
+        ];
+        let scene = SceneKind::load("drape", &set).expect("drape loads");
+        let (cam, _) = scene.start_view();
+        assert!(cam.target.distance(Vec3::new(0.0, 3.0, 0.0)) < 1e-6);
+        assert!((cam.distance() - 2.5).abs() < 1e-5, "{}", cam.distance());
+        assert!(cam.view().is_finite());
     }
 
     #[test]

@@ -204,3 +204,41 @@ fn lit_and_unlit_sides_of_the_ball_differ() {
         "lit {c_lit:?} vs unlit {c_dark:?} ({actual})"
     );
 }
+
+/// `cloth render drape --set 'camera.eye=[0,3,0]' --set 'camera.target=[0,0,0]'` (a camera
+/// straight above the target, looking along −Y) built its view matrix from a degenerate basis
+/// (NaN) and drew only the background. The cloth now fills the middle of the frame.
+#[test]
+fn a_camera_straight_above_sees_the_cloth() {
+    let Some(gpu) = gpu() else { return };
+    let set = [
+        "camera.eye=[0, 3, 0]".to_string(),
+        "camera.target=[0, 0, 0]".to_string(),
+    ];
+    let scene = SceneKind::load("drape", &set).unwrap();
+    let sim = scene
+        .build(RESOLUTION, Integrator::SymplecticEuler)
+        .unwrap();
+    let mut off = Offscreen::new(gpu, SIZE);
+    let (camera, fovy) = scene.start_view();
+    assert_eq!(camera.eye, Vec3::new(0.0, 3.0, 0.0));
+    off.set_fovy(fovy);
+    let img = off
+        .render(&sim, &camera, &cloth_view::default_options(&scene))
+        .unwrap();
+    let actual = save_actual(&img, "straight-down.png");
+    let centre = pixel(&img, Vec2::new(160.0, 120.0));
+    assert!(
+        !is_background(centre),
+        "the centre {centre:?} is background ({actual})"
+    );
+    let drawn = img
+        .pixels()
+        .filter(|p| !is_background([p.0[0], p.0[1], p.0[2]]))
+        .count();
+    let share = drawn as f64 / f64::from(SIZE[0] * SIZE[1]);
+    assert!(
+        share > 0.1,
+        "only {share:.3} of the frame is drawn ({actual})"
+    );
+}
