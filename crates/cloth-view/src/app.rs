@@ -52,12 +52,7 @@ pub fn run(options: ViewOptions) -> anyhow::Result<()> {
         options.resolution,
         options.integrator,
     )?;
-    let event_loop = EventLoop::new().map_err(|e| {
-        anyhow!(
-            "no display to open a window on ({e}); set DISPLAY or WAYLAND_DISPLAY, or run \
-             under a virtual display with `xvfb-run -a cloth view` (apt-get install xvfb xauth)"
-        )
-    })?;
+    let event_loop = EventLoop::new().map_err(|e| anyhow!(no_window_message(&e, display_set())))?;
     if options.screenshot.is_some() && options.frames.is_none() {
         anyhow::bail!("a screenshot needs a frame count to take it at (--frames N)");
     }
@@ -67,6 +62,52 @@ pub fn run(options: ViewOptions) -> anyhow::Result<()> {
         Some(e) => Err(e),
         None => Ok(()),
     }
+}
+
+/// Where to get a display: the end of every "no window" message.
+const DISPLAY_HINT: &str = "set DISPLAY or WAYLAND_DISPLAY, or run under a virtual display \
+with `xvfb-run -a cloth view` (apt-get install xvfb xauth); `cloth render` draws offscreen \
+without one";
+
+/// Whether the environment names a display to open a window on (`DISPLAY`, `WAYLAND_DISPLAY`
+/// or `WAYLAND_SOCKET` set and not empty), as winit decides.
+fn display_set() -> bool {
+    ["DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
+}
+
+/// What to say when the event loop cannot be made: "no display" when none is set, else why
+/// the display refused, without the source location winit puts in its OS errors.
+fn no_window_message(error: &winit::error::EventLoopError, display_set: bool) -> String {
+    if display_set {
+        let why = error.to_string();
+        format!(
+            "cannot open a window on the display ({}); {DISPLAY_HINT}",
+            without_location(&why)
+        )
+    } else {
+        format!("no display: {DISPLAY_HINT}")
+    }
+}
+
+/// `message` without the "os error at FILE.rs:LINE: " that winit's OS errors start with.
+fn without_location(message: &str) -> &str {
+    let Some(rest) = message.strip_prefix("os error at ") else {
+        return message;
+    };
+    let mut search = 0;
+    while let Some(at) = rest[search..].find(".rs:") {
+        let after = &rest[search + at + ".rs:".len()..];
+        let line = after.trim_start_matches(|c: char| c.is_ascii_digit());
+        if line.len() < after.len()
+            && let Some(why) = line.strip_prefix(": ")
+        {
+            return why;
+        }
+        search += at + 1;
+    }
+    message
 }
 
 /// The simulation and how it is being run.
@@ -809,6 +850,39 @@ fn step_ms(previous: f32, elapsed_ms: f32, steps: u32) -> f32 {
 
 #[cfg(test)]
 mod tests {
+    /// Without a display, `cloth view` said "no display to open a window on (os error at
+    /// /root/.cargo/registry/src/…/winit-0.30.13/src/platform_impl/linux/mod.rs:765: …)": a
+    /// build path. The message names only what to do.
+    #[test]
+    fn the_no_display_message_has_no_source_path() {
+        let path = "/root/.cargo/registry/src/index.crates.io-1949cf8c6b5b557f/\
+                    winit-0.30.13/src/platform_impl/linux/mod.rs:765: ";
+        let why = "neither WAYLAND_DISPLAY nor WAYLAND_SOCKET nor DISPLAY is set.";
+        let raw = format!("os error at {path}{why}");
+        assert_eq!(super::without_location(&raw), why);
+        assert_eq!(super::without_location(why), why);
+        assert_eq!(
+            super::without_location("os error at odd"),
+            "os error at odd"
+        );
+        let error = winit::error::EventLoopError::RecreationAttempt;
+        let none = super::no_window_message(&error, false);
+        assert!(
+            none.starts_with("no display: set DISPLAY or WAYLAND_DISPLAY"),
+            "{none}"
+        );
+        assert!(
+            none.contains("xvfb-run") && none.contains("cloth render"),
+            "{none}"
+        );
+        let refused = super::no_window_message(&error, true);
+        assert!(
+            refused.starts_with("cannot open a window on the display ("),
+            "{refused}"
+        );
+        assert!(!refused.contains(".rs:"), "{refused}");
+    }
+
     /// The status line's "sim ms/frame" is per simulation step (as `cloth sim` reports it):
     /// a drawn frame that ran four steps in 40 ms shows 10 ms, one that ran none keeps it.
     #[test]
