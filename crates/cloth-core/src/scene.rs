@@ -1378,6 +1378,16 @@ impl Scene {
         if let Some(cam) = &self.camera {
             finite3("camera.eye", cam.eye)?;
             finite3("camera.target", cam.target)?;
+            if Vec3::from(cam.eye).distance(Vec3::from(cam.target)) < 1e-6 {
+                return Err(problem(
+                    "camera.target",
+                    format!(
+                        "{:?} is where `camera.eye` is: the camera has no direction to look \
+                         in (allowed a target at least 1e-6 m from the eye)",
+                        cam.target
+                    ),
+                ));
+            }
             if !(cam.fov_degrees.is_finite() && cam.fov_degrees > 0.0 && cam.fov_degrees < 180.0) {
                 return Err(invalid(
                     "camera.fov_degrees",

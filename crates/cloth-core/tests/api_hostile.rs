@@ -467,6 +467,10 @@ fn scene_files_refuse_what_they_would_ignore() {
     assert!(message.contains("1e6"), "{message}");
     let (key, _, _) = bad(&format!("description = \"a\\nb\"\n{base}"));
     assert_eq!(key, "description");
+    let (key, _, _) = bad(&format!(
+        "{base}[camera]\neye = [0, 1, 0]\ntarget = [0, 1, 0]\nfov_degrees = 45\n"
+    ));
+    assert_eq!(key, "camera.target");
     let (key, line, _) = bad(&format!(
         "{base}size = [1, 1]\n[solver.self_collision]\nthickness = 5.0\n"
     ));
