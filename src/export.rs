@@ -10,19 +10,33 @@ use cloth_core::glam::Vec3;
 
 /// Writes `bytes` to `path` atomically: a temporary file in the same folder, flushed and
 /// synced, then renamed over `path`. A run that is killed leaves either the old file or the
-/// whole new one, never a truncated file.
+/// whole new one, never a truncated file. When the write or the rename fails, the temporary
+/// file is removed: a failed write leaves `path` as it was and nothing beside it.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
-    let tmp: PathBuf = dir.join(format!(".{name}.tmp"));
+    let tmp = temporary_path(path);
     let mut file =
         fs::File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
-    file.write_all(bytes)
+    let written = file
+        .write_all(bytes)
         .and_then(|()| file.sync_all())
-        .with_context(|| format!("cannot write {}", tmp.display()))?;
+        .with_context(|| format!("cannot write {}", tmp.display()));
     drop(file);
-    fs::rename(&tmp, path)
-        .with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))
+    let result = written.and_then(|()| {
+        fs::rename(&tmp, path)
+            .with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))
+    });
+    if result.is_err() {
+        // The file was created above, so it is ours to remove.
+        let _ = fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// The temporary file [`write_atomic`] writes `path` through: `.NAME.tmp` in its folder.
+fn temporary_path(path: &Path) -> PathBuf {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+    dir.join(format!(".{name}.tmp"))
 }
 
 /// Texture coordinates of a `rows × cols` grid: u along the columns, v along the rows, in

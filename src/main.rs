@@ -15,15 +15,35 @@ mod sim_cmd;
 use cloth_core::{Integrator, Simulation};
 use cloth_view::SceneKind;
 
-const AFTER_HELP: &str = "\
-Scenes (`cloth scenes` lists all built-in ones; any TOML scene file works too):
-  drape       a 1.2 m cloth dropped onto a ball on the ground (the default)
-  hanging     a 1 m curtain pinned along its top edge
-  flag        a flag pinned along its left edge in gusty wind
-  peer-ball   the peer benchmark: a stiff cloth on a frictionless ball
-  xpbd-drape  the drape at 128x128 with XPBD chain solves, in real time
-  table, sweep, euler-sheet, verlet-swing, implicit-drape, xpbd-curtain
+/// The help's text after the options: the built-in scenes (their names read from the scenes
+/// the binary embeds, so the list is never stale), examples, the viewer's controls and the
+/// exit statuses.
+fn after_help() -> String {
+    let mut scenes = String::new();
+    let mut line = String::from(" ");
+    for (i, (name, _)) in cloth_core::scene::BUILTIN.iter().enumerate() {
+        let sep = if i + 1 < cloth_core::scene::BUILTIN.len() {
+            ","
+        } else {
+            ""
+        };
+        if line.len() + 1 + name.len() + sep.len() > 90 {
+            scenes.push_str(&line);
+            scenes.push('\n');
+            line = String::from(" ");
+        }
+        line.push(' ');
+        line.push_str(name);
+        line.push_str(sep);
+    }
+    scenes.push_str(&line);
+    format!(
+        "Built-in scenes (`cloth scenes` describes each; drape is the default; any TOML scene \
+         file works too):\n{scenes}\n\n{AFTER_SCENES}"
+    )
+}
 
+const AFTER_SCENES: &str = "\
 Examples:
   cloth                                   open the viewer on the drape
   cloth sim drape --frames 300            run headless, print energies and strains
@@ -38,12 +58,17 @@ C orbit/fly camera (fly: WASD, Q/E down/up, Shift faster, right-drag looks), W w
 K contacts, Home reset view, Esc quit.
 
 Without a GPU, rendering needs Mesa's software renderer and, for the window, a display (or
-`xvfb-run -a cloth view`). Exit status: 0 ok, 1 failure (no adapter, no display, I/O),
-2 bad arguments, 3 the simulation went unstable.";
+`xvfb-run -a cloth view`).
+
+Exit status: 0 ok; 1 a failure while working (no adapter, no display, a write of frames, report,
+checkpoint, image or standard output that fails during or after the run); 2 bad input
+(arguments, scene files, and output paths found unwritable before any work is done: a folder
+that cannot be created, a missing folder, a folder where a file goes); 3 the simulation went
+unstable; 130 interrupted (Ctrl-C).";
 
 /// Real-time cloth simulation: run, render or view a built-in scene.
 #[derive(Debug, Parser)]
-#[command(name = "cloth", version, about, after_help = AFTER_HELP)]
+#[command(name = "cloth", version, about, after_help = after_help())]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,

@@ -12,7 +12,7 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use cloth_core::diagnostics::{explicit_stability_limit_of, stable_substep_text, substeps_text};
 use cloth_core::scene::{self, BUILTIN, Scene};
-use cloth_core::{ClothError, SimState, SpringClass, StepStats};
+use cloth_core::{ClothError, SimState, Simulation, SpringClass, StepStats};
 use serde::{Deserialize, Serialize};
 
 use crate::export::{GlbFrames, grid_uvs, obj, write_atomic};
@@ -57,7 +57,8 @@ pub struct SimArgs {
         requires = "out"
     )]
     pub format: Vec<Format>,
-    /// Export every K-th frame.
+    /// Export frames K, 2K, 3K, … and always the run's last frame (`frame_NNNN.obj`, NNNN
+    /// the frame number: the state after NNNN steps of dt, at t = NNNN·dt).
     #[arg(long, value_name = "K", default_value = "1", value_parser = parse_positive_u64)]
     pub every: u64,
     /// Write a JSON run report to FILE.
@@ -122,6 +123,10 @@ pub struct CheckArgs {
     pub set: Vec<String>,
     #[command(flatten)]
     pub shorthands: Shorthands,
+    /// Check the scene even if its memory estimate exceeds the memory available (as `cloth
+    /// sim --force`; checking builds the cloth, which takes that memory).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// The shorthands `cloth sim` and `cloth check` take for two overrides.
@@ -153,12 +158,13 @@ impl Shorthands {
     }
 }
 
-/// A count >= 1.
+/// A count in 1 ..= 2⁶⁴ − 1 (a larger number does not fit the counter: it is refused with
+/// the bound, not taken as "not an integer").
 pub(crate) fn parse_positive_u64(s: &str) -> Result<u64, String> {
     s.parse()
         .ok()
         .filter(|&f| f >= 1)
-        .ok_or_else(|| "allowed an integer >= 1".into())
+        .ok_or_else(|| format!("allowed an integer in 1 ..= {}", u64::MAX))
 }
 
 fn parse_seconds(s: &str) -> Result<f64, String> {
@@ -268,6 +274,23 @@ fn summary(scene: &Scene) -> String {
     )
 }
 
+/// Why a scene is refused for memory: its estimate exceeds the memory available (`None`
+/// when it fits, or when the memory available is unknown). `cloth sim` and `cloth check`
+/// refuse it in these words unless `--force`.
+fn memory_refusal(scene: &Scene) -> Option<String> {
+    let (particles, _) = scene.counts();
+    let mem = scene.memory_estimate();
+    let avail = available_memory()?;
+    (mem > avail).then(|| {
+        format!(
+            "this scene needs about {:.1} GiB ({particles} particles), more than the {:.1} GiB \
+             available; lower cloth.resolution or pass --force",
+            mem as f64 / f64::from(1u32 << 30),
+            avail as f64 / f64::from(1u32 << 30)
+        )
+    })
+}
+
 /// `cloth check`.
 pub fn check(args: &CheckArgs) -> ExitCode {
     let overrides = args.shorthands.overrides(&args.set);
@@ -278,6 +301,13 @@ pub fn check(args: &CheckArgs) -> ExitCode {
             return ExitCode::from(EXIT_BAD_INPUT);
         }
     };
+    // Refused before building, as `cloth sim` refuses it: building would take the memory.
+    if let Some(refusal) = memory_refusal(&scene)
+        && !args.force
+    {
+        eprintln!("error: {refusal}");
+        return ExitCode::from(EXIT_BAD_INPUT);
+    }
     let sim = match scene.build() {
         Ok(s) => s,
         Err(e) => {
@@ -406,7 +436,13 @@ const CHECKPOINT_FORMAT: &str = "cloth-checkpoint-1";
 /// How a run ended.
 enum Status {
     Ok,
-    Unstable { step: u64, reason: String },
+    /// `step`: the failed step's index from the start of the run (0-based: the frames done
+    /// before it); it failed computing frame `step + 1`, from the state at `time`.
+    Unstable {
+        step: u64,
+        time: f64,
+        reason: String,
+    },
     Interrupted,
 }
 
@@ -467,6 +503,12 @@ pub(crate) fn check_writable_file(path: &Path, what: &str) -> Result<()> {
             dir.display()
         )));
     }
+    if path.is_dir() {
+        return Err(bad(format!(
+            "the {what} {} is a folder: allowed a file name (a file there is replaced)",
+            path.display()
+        )));
+    }
     let probe = dir.join(".cloth-write-test");
     std::fs::write(&probe, b"ok").map_err(|e| {
         bad(format!(
@@ -476,6 +518,91 @@ pub(crate) fn check_writable_file(path: &Path, what: &str) -> Result<()> {
     })?;
     let _ = std::fs::remove_file(probe);
     Ok(())
+}
+
+/// Refuses a run whose `--out` folder holds a folder where the run writes a file (`wanted`
+/// says which names it writes): its write would fail after the work is done.
+fn check_no_folder_in_the_way(dir: &Path, wanted: impl Fn(&str) -> bool) -> Result<()> {
+    let entries = std::fs::read_dir(dir).map_err(|e| {
+        bad(format!(
+            "the output folder {} cannot be read: {e}",
+            dir.display()
+        ))
+    })?;
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        if let Some(name) = name.to_str()
+            && wanted(name)
+            && entry.path().is_dir()
+        {
+            return Err(bad(format!(
+                "--out: {} is a folder, where this run would write a file; remove or rename it",
+                entry.path().display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The OBJ file of frame `n`: `frame_0001.obj`, … (more digits past 9999).
+fn obj_name(n: u64) -> String {
+    format!("frame_{n:04}.obj")
+}
+
+/// The frames `cloth sim` exports into `--out`: OBJ files written as they come, glb frames
+/// collected for one file at the end.
+struct Export {
+    /// `--out`; `None`: nothing is exported.
+    dir: Option<PathBuf>,
+    obj: bool,
+    glb_wanted: bool,
+    uvs: Vec<[f32; 2]>,
+    normals: Vec<cloth_core::glam::Vec3>,
+    /// The glb's frames so far (from the checkpoint when resumed).
+    glb: GlbFrames,
+    /// The frame exported last, so that none is exported twice.
+    last: Option<u64>,
+}
+
+impl Export {
+    /// Exports `sim`'s state as frame `frame` at time `time`, unless it was already.
+    fn frame(&mut self, sim: &Simulation, frame: u64, time: f64) -> Result<()> {
+        let Some(dir) = &self.dir else {
+            return Ok(());
+        };
+        if self.last == Some(frame) {
+            return Ok(());
+        }
+        self.last = Some(frame);
+        let pos = &sim.particles().position;
+        if self.obj {
+            sim.topology().vertex_normals(pos, &mut self.normals);
+            let text = obj(
+                pos,
+                &self.normals,
+                &self.uvs,
+                sim.topology(),
+                &format!("cloth frame {frame}, t = {time:.6} s"),
+            );
+            write_atomic(&dir.join(obj_name(frame)), text.as_bytes())?;
+        }
+        if self.glb_wanted {
+            self.glb.push(time as f32, pos);
+        }
+        Ok(())
+    }
+
+    /// Writes the glb of the frames collected, if any.
+    fn finish(&self, sim: &Simulation) -> Result<()> {
+        if let Some(dir) = &self.dir
+            && self.glb_wanted
+            && !self.glb.positions.is_empty()
+        {
+            let bytes = self.glb.to_glb(sim.topology(), &self.uvs)?;
+            write_atomic(&dir.join("cloth.glb"), &bytes)?;
+        }
+        Ok(())
+    }
 }
 
 /// Runs the simulation on a pool of `--threads` worker threads.
@@ -552,17 +679,10 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         }
     };
     let (particles, springs) = scene.counts();
-    let mem = scene.memory_estimate();
-    if let Some(avail) = available_memory()
-        && mem > avail
+    if let Some(refusal) = memory_refusal(&scene)
         && !args.force
     {
-        return Err(bad(format!(
-            "this scene needs about {:.1} GiB ({particles} particles), more than the {:.1} GiB \
-                 available; lower cloth.resolution or pass --force",
-            mem as f64 / f64::from(1u32 << 30),
-            avail as f64 / f64::from(1u32 << 30)
-        )));
+        return Err(bad(refusal));
     }
     // 2. Outputs are checked before simulating.
     if let Some(dir) = &args.out {
@@ -606,9 +726,37 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         stepping = cp.sim_wall_seconds;
     }
     let (rows, cols) = sim.grid_size();
-    let uvs = grid_uvs(rows, cols);
-    let want_obj = args.out.is_some() && args.format.contains(&Format::Obj);
-    let want_glb = args.out.is_some() && args.format.contains(&Format::Glb);
+    let mut export = Export {
+        dir: args.out.clone(),
+        obj: args.out.is_some() && args.format.contains(&Format::Obj),
+        glb_wanted: args.out.is_some() && args.format.contains(&Format::Glb),
+        uvs: grid_uvs(rows, cols),
+        normals: Vec::new(),
+        glb,
+        // A resumed run's checkpoint frame was exported by the run that saved it if it was
+        // one of the K-th (a checkpoint is never saved at the last frame).
+        last: (frame > 0 && frame % args.every == 0).then_some(frame),
+    };
+    // A folder where the run would write a file would fail it at the end: refused now.
+    let exported =
+        |n: u64| n > frame && n <= frames_total && (n % args.every == 0 || n == frames_total);
+    if let Some(dir) = &args.out {
+        check_no_folder_in_the_way(dir, |name| {
+            (export.glb_wanted && name == "cloth.glb")
+                || (export.obj
+                    && name
+                        .strip_prefix("frame_")
+                        .and_then(|n| n.strip_suffix(".obj"))
+                        .and_then(|n| n.parse::<u64>().ok())
+                        .is_some_and(|n| exported(n) && name == obj_name(n)))
+        })?;
+    }
+    if args.checkpoint_every.is_some() && checkpoint_path.is_dir() {
+        return Err(bad(format!(
+            "--checkpoint-every: {} is a folder, where the checkpoint would be written",
+            checkpoint_path.display()
+        )));
+    }
 
     let interrupted = Arc::new(AtomicBool::new(false));
     {
@@ -647,7 +795,6 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         None
     };
 
-    let mut normals = Vec::new();
     let mut status = Status::Ok;
     let mut max_self_intersections = records
         .iter()
@@ -674,13 +821,14 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
             }
             Err(ClothError::Unstable {
                 step,
+                time,
                 reason,
                 hint,
                 particle,
-                ..
             }) => {
                 status = Status::Unstable {
                     step,
+                    time,
                     reason: format!("particle {particle}: {reason}; likely cause: {hint}"),
                 };
                 break;
@@ -720,24 +868,8 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
                 None => outln!("{line}"),
             }
         }
-        if frame % args.every == 0
-            && let Some(dir) = &args.out
-        {
-            let pos = &sim.particles().position;
-            if want_obj {
-                sim.topology().vertex_normals(pos, &mut normals);
-                let text = obj(
-                    pos,
-                    &normals,
-                    &uvs,
-                    sim.topology(),
-                    &format!("cloth frame {frame}, t = {:.6} s", stats.time),
-                );
-                write_atomic(&dir.join(format!("frame_{frame:04}.obj")), text.as_bytes())?;
-            }
-            if want_glb {
-                glb.push(stats.time as f32, pos);
-            }
+        if frame % args.every == 0 || frame == frames_total {
+            export.frame(&sim, frame, stats.time)?;
         }
         if let Some(every) = args.checkpoint_every
             && frame % every == 0
@@ -750,7 +882,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
                 sim_wall_seconds: stepping,
                 state: sim.state(),
                 records: records.clone(),
-                glb: glb.clone(),
+                glb: export.glb.clone(),
             };
             write_atomic(&checkpoint_path, &serde_json::to_vec(&cp)?)?;
         }
@@ -764,10 +896,12 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
     if let Some(bar) = progress {
         bar.finish_and_clear();
     }
-    if want_glb && !glb.positions.is_empty() {
-        let bytes = glb.to_glb(sim.topology(), &uvs)?;
-        write_atomic(&args.out.as_ref().expect("out").join("cloth.glb"), &bytes)?;
+    // A run that stopped early (unstable: the state is the last good frame's; interrupted)
+    // exports its last frame too.
+    if frame > 0 {
+        export.frame(&sim, frame, sim.time())?;
     }
+    export.finish(&sim)?;
 
     let kernel = cloth_core::simd::kernel_for(&sim);
     let substeps_done = records.len() as f64 * f64::from(cfg.substeps);
@@ -785,10 +919,18 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
     let median_throughput = median_frame.map(|t| particles as f64 * f64::from(cfg.substeps) / t);
     let (status_json, code, status_line) = match &status {
         Status::Ok => (serde_json::json!("ok"), ExitCode::SUCCESS, "ok".to_string()),
-        Status::Unstable { step, reason } => (
-            serde_json::json!({ "unstable": { "step": step, "reason": reason } }),
+        Status::Unstable { step, time, reason } => (
+            serde_json::json!({ "unstable": {
+                "step": step,
+                "frame": step.saturating_add(1),
+                "time": time,
+                "reason": reason
+            } }),
             ExitCode::from(EXIT_UNSTABLE),
-            format!("unstable at step {step}: {reason}"),
+            format!(
+                "unstable in frame {} (step index {step}, from t = {time:.6} s): {reason}",
+                step.saturating_add(1)
+            ),
         ),
         Status::Interrupted => (
             serde_json::json!("interrupted"),

@@ -55,7 +55,26 @@ fn bad_flags_name_the_flag_and_the_allowed_range() {
     for (args, needles) in [
         (
             vec!["sim", "--frames", "0"],
-            vec!["--frames", "allowed an integer >= 1"],
+            vec![
+                "--frames",
+                "allowed an integer in 1 ..= 18446744073709551615",
+            ],
+        ),
+        // Past u64: refused with the real upper bound, not as "not >= 1".
+        (
+            vec!["sim", "--frames", "99999999999999999999"],
+            vec![
+                "--frames",
+                "allowed an integer in 1 ..= 18446744073709551615",
+            ],
+        ),
+        (
+            vec!["sim", "--every", "18446744073709551616"],
+            vec!["--every", "1 ..= 18446744073709551615"],
+        ),
+        (
+            vec!["sim", "--seconds", "2e6"],
+            vec!["--seconds", "allowed a number of seconds in (0, 1e6]"],
         ),
         (
             vec!["sim", "--resolution", "1"],
@@ -117,7 +136,10 @@ fn bad_flags_name_the_flag_and_the_allowed_range() {
         ),
         (
             vec!["view", "--frames", "zero"],
-            vec!["--frames", "allowed an integer >= 1"],
+            vec![
+                "--frames",
+                "allowed an integer in 1 ..= 18446744073709551615",
+            ],
         ),
         (vec!["teleport"], vec!["teleport"]),
     ] {
@@ -148,6 +170,37 @@ fn help_describes_every_command_and_scene() {
         "xvfb-run",
     ] {
         assert!(stdout.contains(word), "help lacks {word}: {stdout}");
+    }
+    // The help's scene list is every built-in scene `cloth scenes` lists (it used to omit
+    // fold, pile and mesh), and its exit statuses include 130 (interrupted).
+    let (code, scenes, _) = cloth(&["scenes"]);
+    assert_eq!(code, 0);
+    let names: Vec<&str> = scenes
+        .lines()
+        .filter_map(|l| l.split_whitespace().next())
+        .collect();
+    assert!(names.len() >= 14, "{scenes}");
+    let listed: Vec<&str> = stdout
+        .split("Built-in scenes")
+        .nth(1)
+        .and_then(|rest| rest.split("\n\n").next())
+        .expect("a scene list in the help")
+        .lines()
+        .skip(1)
+        .flat_map(|l| l.split(','))
+        .map(str::trim)
+        .filter(|n| !n.is_empty())
+        .collect();
+    assert_eq!(listed, names, "{stdout}");
+    let flat = stdout.split_whitespace().collect::<Vec<_>>().join(" ");
+    for exit in [
+        "0 ok",
+        "1 a failure while working",
+        "2 bad input",
+        "3 the simulation went unstable",
+        "130 interrupted",
+    ] {
+        assert!(flat.contains(exit), "help lacks `{exit}`: {stdout}");
     }
     let (code, stdout, _) = cloth(&["render", "--help"]);
     assert_eq!(code, 0);

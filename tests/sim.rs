@@ -449,14 +449,16 @@ fn resume_and_threads_give_identical_bits() {
 }
 
 /// An unstable run stops, exits 3, writes the frames before the failure and a report with
-/// status "unstable" naming the step.
+/// status "unstable" naming the step (0-based: the frames done before it) and the frame that
+/// failed (numbered from 1, as the table and `frames[].frame`); the summary line says both,
+/// unambiguously (it used to say "3 frames, status unstable at step 3" for the 4th frame).
 #[test]
 fn unstable_runs_exit_3_with_report() {
     let guard = tmp("unstable");
     let dir = guard.path();
     let rep = dir.join("r.json");
     let out = dir.join("out");
-    let (code, _, err) = cloth(&[
+    let (code, stdout, err) = cloth(&[
         "sim",
         "drape",
         "--resolution",
@@ -476,9 +478,52 @@ fn unstable_runs_exit_3_with_report() {
     let step = r["status"]["unstable"]["step"]
         .as_u64()
         .expect("unstable step");
-    assert_eq!(r["frames"].as_array().expect("frames").len() as u64, step);
+    let frames = r["frames"].as_array().expect("frames");
+    assert_eq!(frames.len() as u64, step);
+    assert_eq!(
+        r["status"]["unstable"]["frame"].as_u64(),
+        Some(step + 1),
+        "{r}"
+    );
+    let time = r["status"]["unstable"]["time"].as_f64().expect("time");
+    let last_time = frames
+        .last()
+        .map_or(0.0, |f| f["time"].as_f64().expect("time"));
+    assert_eq!(time, last_time, "{r}");
+    assert!(
+        stdout.contains(&format!(
+            "done: {step} frames, status unstable in frame {} (step index {step}, from t = {time:.6} s): particle",
+            step + 1
+        )),
+        "{stdout}"
+    );
+    assert!(
+        err.contains(&format!("unstable in frame {}", step + 1)),
+        "{err}"
+    );
     if step > 0 {
         assert!(out.join(format!("frame_{step:04}.obj")).exists());
+    }
+
+    // With --every past the failure, the last frame done is exported all the same.
+    let sparse = dir.join("sparse");
+    let (code, _, err) = cloth(&[
+        "sim",
+        "drape",
+        "--resolution",
+        "16",
+        "--frames",
+        "50",
+        "--set",
+        "solver.substeps=1",
+        "--every",
+        "1000",
+        "--out",
+        s(&sparse),
+    ]);
+    assert_eq!(code, 3, "{err}");
+    if step > 0 {
+        assert!(sparse.join(format!("frame_{step:04}.obj")).exists());
     }
 
     // Unstable at its very first frame (a cloth thrown at 999 m/s into the ball): no frame
@@ -705,4 +750,234 @@ fn interrupted_runs_write_their_report() {
     let r = report(&rep);
     assert_eq!(r["status"], "interrupted");
     assert!(!r["frames"].as_array().expect("frames").is_empty());
+}
+
+/// The names in `dir` that end in `.tmp`: what a failed atomic write would leave behind.
+fn temporaries(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .expect("dir")
+        .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
+        .filter(|n| n.ends_with(".tmp"))
+        .collect()
+}
+
+/// An output path that cannot be written, found before the run (a `--report` that names a
+/// folder, a folder inside `--out` where the run writes a file, a folder that cannot be
+/// created, a missing report folder), is bad input: exit status 2, one message naming it,
+/// nothing simulated and no temporary file left. (A report path that was a folder used to
+/// fail only after the run, exit status 1, leaving `.NAME.tmp` behind.)
+#[test]
+fn output_paths_that_cannot_be_written_are_refused_before_the_run() {
+    let guard = tmp("out-paths");
+    let dir = guard.path();
+    let folder = dir.join("somedir");
+    std::fs::create_dir(&folder).expect("mkdir");
+    let (code, out, err) = cloth(&["sim", "drape", "--frames", "2", "--report", s(&folder)]);
+    assert_eq!(code, 2, "{out}{err}");
+    assert!(
+        err.contains(&format!("the report {} is a folder", s(&folder))),
+        "{err}"
+    );
+    assert!(!out.contains("done:"), "the run should not start: {out}");
+    assert!(temporaries(dir).is_empty(), "{:?}", temporaries(dir));
+
+    // Folders where `--out` files go: the glb, an exported frame, the checkpoint.
+    for (name, extra) in [
+        ("cloth.glb", &["--format", "glb"][..]),
+        ("frame_0004.obj", &["--format", "obj", "--every", "2"][..]),
+        // not exported with --every 3 and 5 frames (3 and the last, 5, are): no refusal
+        ("frame_0004.obj", &["--format", "obj", "--every", "3"][..]),
+        ("checkpoint.json", &["--checkpoint-every", "2"][..]),
+    ] {
+        let out_dir = dir.join(format!("out-{}", extra.join("")));
+        std::fs::create_dir_all(out_dir.join(name)).expect("mkdir");
+        let mut args = vec!["sim", "drape", "--resolution", "6", "--frames", "5"];
+        args.extend_from_slice(&["--out", s(&out_dir)]);
+        args.extend_from_slice(extra);
+        let (code, out, err) = cloth(&args);
+        if extra.contains(&"3") {
+            assert_eq!(code, 0, "{args:?}: {err}");
+            assert!(out_dir.join("frame_0003.obj").exists());
+            assert!(out_dir.join("frame_0005.obj").exists());
+            continue;
+        }
+        bad(&args, &[&format!("{} is a folder", s(&out_dir.join(name)))]);
+        assert!(temporaries(&out_dir).is_empty(), "{args:?}");
+    }
+
+    // A folder that cannot be created and a missing report folder: exit status 2 too, as
+    // the README and `cloth --help` say.
+    bad(
+        &["sim", "drape", "--frames", "1", "--out", "/dev/null/x"],
+        &["the output folder /dev/null/x cannot be created"],
+    );
+    bad(
+        &[
+            "sim",
+            "drape",
+            "--frames",
+            "1",
+            "--report",
+            s(&dir.join("nonexistent/r.json")),
+        ],
+        &["report folder", "does not exist"],
+    );
+}
+
+/// A write that fails during or after the run exits with status 1 and removes its temporary
+/// file (it used to stay, `.r.json.tmp` beside the report). The folder in the way is made
+/// once the run has started (after the checks before it): the run prints more table lines
+/// than a pipe holds before it writes the file, so it waits for this test to read them, and
+/// the folder is there by then.
+#[test]
+fn a_failed_write_during_the_run_exits_1_and_leaves_no_temporary_file() {
+    use std::io::{BufRead, Read};
+    let guard = tmp("failed-write");
+    let dir = guard.path();
+    for (name, extra) in [
+        ("r.json", &["--report"][..]),
+        ("out/frame_2000.obj", &["--every", "1000", "--out"][..]),
+        (
+            "out/cloth.glb",
+            &["--every", "1000", "--format", "glb", "--out"][..],
+        ),
+        (
+            "out/checkpoint.json",
+            &["--every", "1000", "--checkpoint-every", "1999", "--out"][..],
+        ),
+    ] {
+        let target = dir.join(name);
+        let _ = std::fs::remove_dir_all(&target);
+        let out_dir = dir.join("out");
+        let last = if extra.contains(&"--report") {
+            s(&target)
+        } else {
+            s(&out_dir)
+        };
+        let mut args = vec![
+            "sim",
+            "hanging",
+            "--resolution",
+            "4",
+            "--frames",
+            "2000",
+            "--table-every",
+            "1",
+            "--threads",
+            "1",
+        ];
+        args.extend_from_slice(extra);
+        args.push(last);
+        let mut child = Command::new(env!("CARGO_BIN_EXE_cloth"))
+            .args(&args)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("spawn");
+        let mut stdout = std::io::BufReader::new(child.stdout.take().expect("stdout"));
+        let mut first = String::new();
+        stdout.read_line(&mut first).expect("summary line");
+        assert!(first.starts_with("scene hanging"), "{first}");
+        std::fs::create_dir_all(&target).expect("mkdir");
+        let mut rest = String::new();
+        stdout.read_to_string(&mut rest).expect("stdout");
+        assert!(
+            rest.len() > 1 << 17,
+            "the run must outlast the pipe: {}",
+            rest.len()
+        );
+        let mut err = String::new();
+        child
+            .stderr
+            .take()
+            .expect("stderr")
+            .read_to_string(&mut err)
+            .expect("stderr");
+        let status = child.wait().expect("wait");
+        assert_eq!(status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains("cannot rename"), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        let folder = target.parent().expect("parent");
+        assert!(
+            temporaries(folder).is_empty(),
+            "{args:?}: {:?}",
+            temporaries(folder)
+        );
+        std::fs::remove_dir_all(&target).expect("rmdir");
+    }
+}
+
+/// `--every K` exports frames K, 2K, … and always the run's last frame: K past the frame
+/// count still exports the last frame (it used to export nothing and say nothing), and the
+/// files are named by frame number.
+#[test]
+fn every_exports_the_last_frame_too() {
+    let guard = tmp("every");
+    let dir = guard.path();
+    let objs = |out: &Path| {
+        let mut names: Vec<String> = std::fs::read_dir(out)
+            .expect("out")
+            .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
+            .filter(|n| n.ends_with(".obj"))
+            .collect();
+        names.sort();
+        names
+    };
+    for (frames, every, want) in [
+        ("3", "5", &["frame_0003.obj"][..]),
+        (
+            "10",
+            "4",
+            &["frame_0004.obj", "frame_0008.obj", "frame_0010.obj"][..],
+        ),
+        ("4", "2", &["frame_0002.obj", "frame_0004.obj"][..]),
+    ] {
+        let out = dir.join(format!("f{frames}e{every}"));
+        let (code, _, err) = cloth(&[
+            "sim",
+            "drape",
+            "--resolution",
+            "6",
+            "--frames",
+            frames,
+            "--every",
+            every,
+            "--out",
+            s(&out),
+            "--format",
+            "obj,glb",
+        ]);
+        assert_eq!(code, 0, "{err}");
+        assert_eq!(objs(&out), want, "--frames {frames} --every {every}");
+        let (doc, _, _) = gltf::import(out.join("cloth.glb")).expect("gltf imports it");
+        let prim = doc
+            .meshes()
+            .next()
+            .and_then(|m| m.primitives().next())
+            .expect("a primitive");
+        assert_eq!(prim.morph_targets().count(), want.len());
+    }
+}
+
+/// `cloth check` refuses a scene too big for the memory available as `cloth sim` does, with
+/// the same figures (it used to say "ok" for a scene `sim` refuses).
+#[test]
+fn check_refuses_a_scene_for_memory_as_sim_does() {
+    let needs = |err: &str| {
+        err.split("needs about ")
+            .nth(1)
+            .and_then(|r| r.split(')').next())
+            .map(str::to_owned)
+            .unwrap_or_else(|| panic!("no estimate in {err}"))
+    };
+    let (code, out, sim_err) = cloth(&["sim", "drape", "--resolution", "8192", "--frames", "1"]);
+    assert_eq!(code, 2, "{out}{sim_err}");
+    let (code, out, check_err) = cloth(&["check", "drape", "--resolution", "8192"]);
+    assert_eq!(code, 2, "{out}{check_err}");
+    assert!(!out.contains("ok"), "{out}");
+    assert_eq!(needs(&check_err), needs(&sim_err));
+    assert_eq!(needs(&check_err), "36.0 GiB (67108864 particles");
+    for needle in ["GiB available", "--force"] {
+        assert!(check_err.contains(needle), "{check_err}");
+    }
 }
