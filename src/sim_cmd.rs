@@ -735,11 +735,12 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         glb,
         // A resumed run's checkpoint frame was exported by the run that saved it if it was
         // one of the K-th (a checkpoint is never saved at the last frame).
-        last: (frame > 0 && frame % args.every == 0).then_some(frame),
+        last: (frame > 0 && frame.is_multiple_of(args.every)).then_some(frame),
     };
     // A folder where the run would write a file would fail it at the end: refused now.
-    let exported =
-        |n: u64| n > frame && n <= frames_total && (n % args.every == 0 || n == frames_total);
+    let exported = |n: u64| {
+        n > frame && n <= frames_total && (n.is_multiple_of(args.every) || n == frames_total)
+    };
     if let Some(dir) = &args.out {
         check_no_folder_in_the_way(dir, |name| {
             (export.glb_wanted && name == "cloth.glb")
@@ -868,7 +869,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
                 None => outln!("{line}"),
             }
         }
-        if frame % args.every == 0 || frame == frames_total {
+        if frame.is_multiple_of(args.every) || frame == frames_total {
             export.frame(&sim, frame, stats.time)?;
         }
         if let Some(every) = args.checkpoint_every

@@ -794,7 +794,7 @@ fn output_paths_that_cannot_be_written_are_refused_before_the_run() {
         let mut args = vec!["sim", "drape", "--resolution", "6", "--frames", "5"];
         args.extend_from_slice(&["--out", s(&out_dir)]);
         args.extend_from_slice(extra);
-        let (code, out, err) = cloth(&args);
+        let (code, _, err) = cloth(&args);
         if extra.contains(&"3") {
             assert_eq!(code, 0, "{args:?}: {err}");
             assert!(out_dir.join("frame_0003.obj").exists());
