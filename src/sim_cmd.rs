@@ -170,8 +170,14 @@ pub(crate) fn parse_positive_u64(s: &str) -> Result<u64, String> {
 fn parse_seconds(s: &str) -> Result<f64, String> {
     s.parse::<f64>()
         .ok()
-        .filter(|v| v.is_finite() && *v > 0.0 && *v <= 1e6)
-        .ok_or_else(|| "allowed a number of seconds in (0, 1e6]".into())
+        .filter(|v| v.is_finite() && *v > 0.0 && *v <= f64::from(cloth_core::scene::MAX_DURATION))
+        .ok_or_else(|| {
+            format!(
+                "allowed a number of seconds in (0, {:e}] (a scene's `duration` has the same \
+                 bound)",
+                cloth_core::scene::MAX_DURATION
+            )
+        })
 }
 
 fn parse_kernel(s: &str) -> Result<cloth_core::simd::Kernel, String> {
