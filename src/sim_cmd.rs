@@ -170,12 +170,12 @@ pub(crate) fn parse_positive_u64(s: &str) -> Result<u64, String> {
 fn parse_seconds(s: &str) -> Result<f64, String> {
     s.parse::<f64>()
         .ok()
-        .filter(|v| v.is_finite() && *v > 0.0 && *v <= f64::from(cloth_core::scene::MAX_DURATION))
+        .filter(|v| v.is_finite() && *v > 0.0 && *v <= f64::from(scene::MAX_DURATION))
         .ok_or_else(|| {
             format!(
                 "allowed a number of seconds in (0, {:e}] (a scene's `duration` has the same \
                  bound)",
-                cloth_core::scene::MAX_DURATION
+                scene::MAX_DURATION
             )
         })
 }
