@@ -285,16 +285,28 @@ mod tests {
     }
 
     /// `--set camera.eye=[0,3,0] --set camera.target=[0,3,0]` (eye on the target) gave a NaN
-    /// view matrix and a frame of background only: the view now looks at the target from
-    /// 2.5 m, with a finite view matrix.
+    /// view matrix and a frame of background only: such a scene is now refused where it is
+    /// read, naming `camera.target` (a scene edited in code that skips that check still gets
+    /// the viewer's fallback, a view of the target from 2.5 m).
     #[test]
-    fn a_camera_with_its_eye_on_the_target_looks_at_it_from_a_distance() {
+    fn a_camera_with_its_eye_on_the_target_is_refused() {
         let set = [
             "camera.eye=[0, 3, 0]".to_string(),
             "camera.target=[0, 3, 0]".to_string(),
         ];
-        let scene = SceneKind::load("drape", &set).expect("drape loads");
-        let (cam, _) = scene.start_view();
+        let Err(err) = SceneKind::load("drape", &set) else {
+            panic!("a camera with its eye on its target was accepted");
+        };
+        assert!(err.to_string().contains("`camera.target`"), "{err}");
+        // The fallback, for a scene edited in code.
+        let mut drape = SceneKind::builtin("drape").expect("drape");
+        drape.scene.camera = Some(scene::CameraDesc {
+            eye: [0.0, 3.0, 0.0],
+            target: [0.0, 3.0, 0.0],
+            fov_degrees: 45.0,
+        });
+        drape.camera_set = true;
+        let (cam, _) = drape.start_view();
         assert!(cam.target.distance(Vec3::new(0.0, 3.0, 0.0)) < 1e-6);
         assert!((cam.distance() - 2.5).abs() < 1e-5, "{}", cam.distance());
         assert!(cam.view().is_finite());
