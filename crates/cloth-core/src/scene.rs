@@ -1778,7 +1778,23 @@ fn de_error(source: &str, file: &str, e: &toml::de::Error) -> ClothError {
     } else {
         key
     };
-    scene_error(file, pos, &key, plain_types(&message))
+    let mut message = plain_types(&message);
+    // An enum given a number or an array: name what it takes.
+    if message.contains("wanted string or table") {
+        let names = if key.ends_with("orientation") {
+            "\"horizontal\" or \"vertical\""
+        } else if key.ends_with(".type") {
+            "\"sphere\", \"plane\", \"capsule\", \"box\" or \"mesh\""
+        } else if key.ends_with("corners") {
+            "\"top-left\", \"top-right\", \"bottom-left\" or \"bottom-right\""
+        } else if key.ends_with("edges") {
+            "\"top\", \"bottom\", \"left\" or \"right\""
+        } else {
+            "a name in quotes (docs/scenes.md lists them)"
+        };
+        message = format!("expected {names}");
+    }
+    scene_error(file, pos, &key, message)
 }
 
 /// serde's type names in `message` in words (`expected f32` → `expected a number`).

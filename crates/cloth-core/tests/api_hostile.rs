@@ -471,6 +471,12 @@ fn scene_files_refuse_what_they_would_ignore() {
         "{base}[camera]\neye = [0, 1, 0]\ntarget = [0, 1, 0]\nfov_degrees = 45\n"
     ));
     assert_eq!(key, "camera.target");
+    let (key, _, message) = bad("[cloth]\nresolution = [8, 8]\norientation = 1\n");
+    assert_eq!(key, "cloth.orientation");
+    assert!(
+        message.contains("\"horizontal\" or \"vertical\""),
+        "{message}"
+    );
     let (key, line, _) = bad(&format!(
         "{base}size = [1, 1]\n[solver.self_collision]\nthickness = 5.0\n"
     ));
