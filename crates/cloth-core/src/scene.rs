@@ -1359,18 +1359,13 @@ impl Scene {
             // `Simulation::new`'s bound, known here from the grid's spacing (the largest
             // structural rest length of a flat grid), so that the error points into the file.
             let (dx, dy) = self.cloth.spacing_of();
-            let spacing = dx.max(dy);
-            let most = f64::from(crate::sim::MAX_SELF_COLLISION_SPACINGS) * spacing;
-            if f64::from(sc.thickness) > most {
+            if let Some(allowed) =
+                crate::sim::self_collision_too_thick(sc.thickness, dx.max(dy) as f32)
+            {
                 return Err(invalid(
                     "solver.self_collision.thickness",
                     sc.thickness,
-                    &format!(
-                        "(0, {most:.4}] m: at most {} grid spacings of {spacing:.4} m (use \
-                         about one spacing; a thicker layer makes the pair search's time and \
-                         memory grow with its square)",
-                        crate::sim::MAX_SELF_COLLISION_SPACINGS
-                    ),
+                    &allowed,
                 ));
             }
             non_negative("solver.self_collision.friction", sc.friction)?;

@@ -125,48 +125,60 @@ fn largest_spacing(topology: &Topology) -> f32 {
         .fold(0.0, f32::max)
 }
 
+/// What a self-collision `thickness` (m) on a grid of largest `spacing` (m) is allowed, when
+/// it is more than [`MAX_SELF_COLLISION_SPACINGS`] spacings: the one bound and wording of
+/// [`Simulation::new`] and of scene files (which know the spacing before the cloth is built).
+pub(crate) fn self_collision_too_thick(thickness: f32, spacing: f32) -> Option<String> {
+    let most = MAX_SELF_COLLISION_SPACINGS * spacing;
+    (spacing > 0.0 && thickness > most).then(|| {
+        format!(
+            "(0, {most:.4}] m: at most {MAX_SELF_COLLISION_SPACINGS} grid spacings of \
+             {spacing:.4} m (use about one spacing; a thicker layer makes the pair search's \
+             time and memory grow with its square)"
+        )
+    })
+}
+
 /// The checks of a configuration that need the cloth: the self-collision thickness against
 /// the grid spacing ([`MAX_SELF_COLLISION_SPACINGS`]).
 fn check_for_cloth(config: &SimConfig, topology: &Topology) -> Result<()> {
     let Some(sc) = config.self_collision else {
         return Ok(());
     };
-    let spacing = largest_spacing(topology);
-    let most = MAX_SELF_COLLISION_SPACINGS * spacing;
-    if spacing > 0.0 && sc.thickness > most {
-        return Err(ClothError::invalid(
+    match self_collision_too_thick(sc.thickness, largest_spacing(topology)) {
+        Some(allowed) => Err(ClothError::invalid(
             "config.self_collision.thickness",
             sc.thickness,
-            format!(
-                "(0, {most:.4}] m: at most {MAX_SELF_COLLISION_SPACINGS} grid spacings of \
-                 {spacing:.4} m (use about one spacing; a thicker layer makes the pair search's \
-                 time and memory grow with its square)"
-            ),
+            allowed,
+        )),
+        None => Ok(()),
+    }
+}
+
+/// `velocity` at most `config.limits.max_speed` fast (a faster particle would make every step
+/// fail the instability check); the error names `name()`.
+fn check_speed(name: impl FnOnce() -> String, velocity: Vec3, config: &SimConfig) -> Result<()> {
+    let most = config.limits.max_speed;
+    if velocity.as_dvec3().length() > f64::from(most) {
+        return Err(ClothError::invalid(
+            name(),
+            velocity,
+            format!("a speed of at most {most} m/s (`limits.max_speed`)"),
         ));
     }
     Ok(())
 }
 
-/// Every velocity at most `config.limits.max_speed`: a faster particle would make every step
-/// fail the instability check.
+/// [`check_speed`] of every velocity, the error naming `name[i]`.
 fn check_speeds(
     name: &str,
     velocity: impl IntoIterator<Item = Vec3>,
     config: &SimConfig,
 ) -> Result<()> {
-    let most = config.limits.max_speed;
-    match velocity
+    velocity
         .into_iter()
         .enumerate()
-        .find(|(_, v)| v.as_dvec3().length() > f64::from(most))
-    {
-        Some((i, v)) => Err(ClothError::invalid(
-            format!("{name}[{i}]"),
-            v,
-            format!("a speed of at most {most} m/s (`limits.max_speed`)"),
-        )),
-        None => Ok(()),
-    }
+        .try_for_each(|(i, v)| check_speed(|| format!("{name}[{i}]"), v, config))
 }
 
 impl Simulation {
@@ -503,16 +515,7 @@ impl Simulation {
     pub fn set_velocity(&mut self, i: usize, velocity: Vec3) -> Result<()> {
         self.check_index("set_velocity", i)?;
         check::finite_vec("set_velocity.velocity", velocity)?;
-        if velocity.as_dvec3().length() > f64::from(self.config.limits.max_speed) {
-            return Err(ClothError::invalid(
-                "set_velocity.velocity",
-                velocity,
-                format!(
-                    "a speed of at most {} m/s (`limits.max_speed`)",
-                    self.config.limits.max_speed
-                ),
-            ));
-        }
+        check_speed(|| "set_velocity.velocity".into(), velocity, &self.config)?;
         if !self.particles.is_pinned(i) {
             self.particles.velocity[i] = velocity;
         }
