@@ -96,7 +96,8 @@ pub struct SimArgs {
     /// and --seconds count from the start of the run.
     #[arg(long, value_name = "CHECKPOINT")]
     pub resume: Option<PathBuf>,
-    /// Run even if the memory estimate exceeds the memory available.
+    /// Run even if the memory estimate exceeds the memory available (or the environment's
+    /// CLOTH_MEMORY_LIMIT, a size such as 4GiB).
     #[arg(long)]
     pub force: bool,
     /// Print the diagnostics table every N frames (0: only the summary).
@@ -123,8 +124,9 @@ pub struct CheckArgs {
     pub set: Vec<String>,
     #[command(flatten)]
     pub shorthands: Shorthands,
-    /// Check the scene even if its memory estimate exceeds the memory available (as `cloth
-    /// sim --force`; checking builds the cloth, which takes that memory).
+    /// Check the scene even if its memory estimate exceeds the memory available or
+    /// CLOTH_MEMORY_LIMIT (as `cloth sim --force`; checking builds the cloth, which takes that
+    /// memory).
     #[arg(long)]
     pub force: bool,
 }
@@ -262,7 +264,54 @@ fn available_memory() -> Option<u64> {
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
+    Some(kb.saturating_mul(1024))
+}
+
+/// The environment variable that caps the memory `cloth sim` and `cloth check` may plan for
+/// (below what /proc/meminfo says is available), e.g. `CLOTH_MEMORY_LIMIT=4GiB` on a shared
+/// machine.
+pub const MEMORY_LIMIT_VAR: &str = "CLOTH_MEMORY_LIMIT";
+
+/// A size in bytes: a whole number, optionally followed by `KiB`, `MiB` or `GiB`
+/// (`512MiB`, `4GiB`, `1048576`). `None` for anything else, zero, or over 2⁶⁴ bytes.
+fn parse_size(text: &str) -> Option<u64> {
+    let t = text.trim();
+    let (digits, unit) = match t.find(|c: char| !c.is_ascii_digit()) {
+        Some(i) => t.split_at(i),
+        None => (t, ""),
+    };
+    let scale: u64 = match unit.trim() {
+        "" => 1,
+        "KiB" => 1 << 10,
+        "MiB" => 1 << 20,
+        "GiB" => 1 << 30,
+        _ => return None,
+    };
+    let n: u64 = digits.parse().ok()?;
+    n.checked_mul(scale).filter(|&b| b > 0)
+}
+
+/// The memory a scene may use: the smaller of /proc/meminfo's `MemAvailable` and
+/// [`MEMORY_LIMIT_VAR`], with the limit's source for messages (`None` when neither is known).
+fn memory_budget() -> Result<Option<(u64, &'static str)>, String> {
+    let limit = match std::env::var_os(MEMORY_LIMIT_VAR) {
+        // Unset, or set empty (`CLOTH_MEMORY_LIMIT= cloth sim ...`): no limit.
+        None => None,
+        Some(v) if v.is_empty() => None,
+        Some(v) => Some(v.to_str().and_then(parse_size).ok_or_else(|| {
+            format!(
+                "{MEMORY_LIMIT_VAR}={}: expected a size in bytes > 0, as a whole number \
+                 optionally followed by KiB, MiB or GiB (e.g. 4GiB)",
+                v.to_string_lossy()
+            )
+        })?),
+    };
+    Ok(match (available_memory(), limit) {
+        (Some(avail), Some(lim)) if lim < avail => Some((lim, MEMORY_LIMIT_VAR)),
+        (Some(avail), _) => Some((avail, "available")),
+        (None, Some(lim)) => Some((lim, MEMORY_LIMIT_VAR)),
+        (None, None) => None,
+    })
 }
 
 fn summary(scene: &Scene) -> String {
@@ -280,21 +329,36 @@ fn summary(scene: &Scene) -> String {
     )
 }
 
-/// Why a scene is refused for memory: its estimate exceeds the memory available (`None`
-/// when it fits, or when the memory available is unknown). `cloth sim` and `cloth check`
-/// refuse it in these words unless `--force`.
-fn memory_refusal(scene: &Scene) -> Option<String> {
+/// Why a scene is refused for memory: its estimate exceeds the memory available or
+/// [`MEMORY_LIMIT_VAR`] (`Ok(None)` when it fits, or when neither is known). `cloth sim` and
+/// `cloth check` refuse it in these words unless `--force`; a malformed limit is an error
+/// even with `--force`.
+fn memory_refusal(scene: &Scene) -> Result<Option<String>, String> {
     let (particles, _) = scene.counts();
     let mem = scene.memory_estimate();
-    let avail = available_memory()?;
-    (mem > avail).then(|| {
+    let Some((budget, source)) = memory_budget()? else {
+        return Ok(None);
+    };
+    // GiB with one decimal, or whole MiB below 1 GiB.
+    let size = |b: u64| {
+        if b >= 1 << 30 {
+            format!("{:.1} GiB", b as f64 / f64::from(1u32 << 30))
+        } else {
+            format!("{:.0} MiB", b as f64 / f64::from(1u32 << 20))
+        }
+    };
+    Ok((mem > budget).then(|| {
+        let what = if source == MEMORY_LIMIT_VAR {
+            format!("the {} {MEMORY_LIMIT_VAR} allows", size(budget))
+        } else {
+            format!("the {} available", size(budget))
+        };
         format!(
-            "this scene needs about {:.1} GiB ({particles} particles), more than the {:.1} GiB \
-             available; lower cloth.resolution or pass --force",
-            mem as f64 / f64::from(1u32 << 30),
-            avail as f64 / f64::from(1u32 << 30)
+            "this scene needs about {} ({particles} particles), more than {what}; \
+             lower cloth.resolution or pass --force",
+            size(mem)
         )
-    })
+    }))
 }
 
 /// `cloth check`.
@@ -308,11 +372,16 @@ pub fn check(args: &CheckArgs) -> ExitCode {
         }
     };
     // Refused before building, as `cloth sim` refuses it: building would take the memory.
-    if let Some(refusal) = memory_refusal(&scene)
-        && !args.force
-    {
-        eprintln!("error: {refusal}");
-        return ExitCode::from(EXIT_BAD_INPUT);
+    match memory_refusal(&scene) {
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+        Ok(Some(refusal)) if !args.force => {
+            eprintln!("error: {refusal}");
+            return ExitCode::from(EXIT_BAD_INPUT);
+        }
+        Ok(_) => {}
     }
     let sim = match scene.build() {
         Ok(s) => s,
@@ -685,7 +754,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         }
     };
     let (particles, springs) = scene.counts();
-    if let Some(refusal) = memory_refusal(&scene)
+    if let Some(refusal) = memory_refusal(&scene).map_err(bad)?
         && !args.force
     {
         return Err(bad(refusal));

@@ -7,8 +7,14 @@ use std::path::Path;
 use std::process::Command;
 
 fn cloth(args: &[&str]) -> (i32, String, String) {
+    cloth_env(args, &[])
+}
+
+/// `cloth` with environment variables set (e.g. `CLOTH_MEMORY_LIMIT`).
+fn cloth_env(args: &[&str], vars: &[(&str, &str)]) -> (i32, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_cloth"))
         .args(args)
+        .envs(vars.iter().copied())
         .output()
         .expect("run cloth");
     (
@@ -622,10 +628,6 @@ fn bad_input_is_named_precisely() {
         &["sim", s(&dir.join("missing.toml"))],
         &["missing.toml", "cannot read"],
     );
-    bad(
-        &["sim", "drape", "--set", "cloth.resolution=[8192,8192]"],
-        &["GiB", "--force"],
-    );
     let file_as_dir = write("not-a-dir", b"x");
     bad(
         &[
@@ -958,7 +960,10 @@ fn every_exports_the_last_frame_too() {
 }
 
 /// `cloth check` refuses a scene too big for the memory available as `cloth sim` does, with
-/// the same figures (it used to say "ok" for a scene `sim` refuses).
+/// the same figures (it used to say "ok" for a scene `sim` refuses). The bound is set with
+/// `CLOTH_MEMORY_LIMIT` so that the test does not depend on the host's memory: at the largest
+/// resolution, 8192², the estimate is 36 GiB, over the 8 GiB limit; at 512² it is about
+/// 144 MiB, over a 64 MiB limit, and `--force` checks it.
 #[test]
 fn check_refuses_a_scene_for_memory_as_sim_does() {
     let needs = |err: &str| {
@@ -968,14 +973,50 @@ fn check_refuses_a_scene_for_memory_as_sim_does() {
             .map(str::to_owned)
             .unwrap_or_else(|| panic!("no estimate in {err}"))
     };
-    let (code, out, sim_err) = cloth(&["sim", "drape", "--resolution", "8192", "--frames", "1"]);
+    let limit = [("CLOTH_MEMORY_LIMIT", "8GiB")];
+    let sim = ["sim", "drape", "--resolution", "8192", "--frames", "1"];
+    let (code, out, sim_err) = cloth_env(&sim, &limit);
     assert_eq!(code, 2, "{out}{sim_err}");
-    let (code, out, check_err) = cloth(&["check", "drape", "--resolution", "8192"]);
+    let (code, out, check_err) = cloth_env(&["check", "drape", "--resolution", "8192"], &limit);
     assert_eq!(code, 2, "{out}{check_err}");
     assert!(!out.contains("ok"), "{out}");
     assert_eq!(needs(&check_err), needs(&sim_err));
     assert_eq!(needs(&check_err), "36.0 GiB (67108864 particles");
-    for needle in ["GiB available", "--force"] {
-        assert!(check_err.contains(needle), "{check_err}");
+    // Whichever is smaller binds: the limit, or the memory available on a small host.
+    for err in [&sim_err, &check_err] {
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+        assert!(err.contains("--force"), "{err}");
+        assert!(
+            err.contains("the 8.0 GiB CLOTH_MEMORY_LIMIT allows") || err.contains("GiB available"),
+            "{err}"
+        );
+    }
+    let small = [("CLOTH_MEMORY_LIMIT", "64MiB")];
+    let (code, out, err) = cloth_env(&["check", "drape", "--resolution", "512"], &small);
+    assert_eq!(code, 2, "{out}{err}");
+    assert!(
+        err.contains("(262144 particles), more than the 64 MiB CLOTH_MEMORY_LIMIT allows"),
+        "{err}"
+    );
+    let (code, out, err) = cloth_env(
+        &["check", "drape", "--resolution", "512", "--force"],
+        &small,
+    );
+    assert_eq!(code, 0, "{out}{err}");
+    assert!(out.contains("particles=262144"), "{out}");
+    // A malformed limit is bad input, named, even with --force.
+    for bad_limit in ["4GB", "0", "1.5GiB", "-1", " ", "99999999999GiB"] {
+        for force in [false, true] {
+            let mut args = vec!["check", "drape", "--resolution", "8"];
+            if force {
+                args.push("--force");
+            }
+            let (code, out, err) = cloth_env(&args, &[("CLOTH_MEMORY_LIMIT", bad_limit)]);
+            assert_eq!(code, 2, "{bad_limit:?}: {out}{err}");
+            assert!(
+                err.contains(&format!("CLOTH_MEMORY_LIMIT={bad_limit}:")) && err.contains("GiB"),
+                "{bad_limit:?}: {err}"
+            );
+        }
     }
 }
