@@ -133,19 +133,6 @@ pub(crate) mod check {
         }
     }
 
-    /// Every component finite and at most `max` in magnitude (m).
-    pub fn bounded_vec(name: &str, value: Vec3, max: f32) -> Result<()> {
-        if value.is_finite() && value.abs().max_element() <= max {
-            Ok(())
-        } else {
-            Err(ClothError::invalid(
-                name,
-                value,
-                format!("finite components of magnitude at most {max:e} m"),
-            ))
-        }
-    }
-
     /// `lo <= value <= hi`, finite.
     pub fn in_range(name: &str, value: f32, lo: f32, hi: f32) -> Result<()> {
         if value.is_finite() && (lo..=hi).contains(&value) {

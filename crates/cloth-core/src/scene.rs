@@ -25,7 +25,7 @@
 use glam::{EulerRot, Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
-use crate::collide::{Collider, Friction, Shape};
+use crate::collide::{Collider, Friction, Shape, range};
 use crate::config::{
     Air, ForceSwitches, Gust, ImplicitSettings, Integrator, Material, SimConfig, SpringParams,
     StabilityLimits, XpbdSettings,
@@ -1132,27 +1132,18 @@ impl Scene {
         }
         for (i, col) in self.colliders.iter().enumerate() {
             let key = |k: &str| format!("colliders[{i}].{k}");
-            let max = crate::collide::MAX_COLLIDER_EXTENT;
             let point = |k: &str, v: [f32; 3]| {
-                if v.iter().all(|x| x.is_finite() && x.abs() <= max) {
+                if range::point(v) {
                     Ok(())
                 } else {
-                    Err(invalid(
-                        key(k),
-                        v,
-                        &format!("three finite numbers of magnitude at most {max:e} m"),
-                    ))
+                    Err(invalid(key(k), v, &range::point_allowed()))
                 }
             };
             let size = |k: &str, v: f32| {
-                if v.is_finite() && v > 0.0 && v <= max {
+                if range::size(v) {
                     Ok(())
                 } else {
-                    Err(invalid(
-                        key(k),
-                        v,
-                        &format!("a finite number > 0 and at most {max:e} m"),
-                    ))
+                    Err(invalid(key(k), v, &range::size_allowed()))
                 }
             };
             // The keys each kind reads (`rotation` and the motion keys have defaults).
@@ -1221,11 +1212,11 @@ impl Scene {
                 ColliderKind::Box => {
                     point("center", col.center.unwrap_or_default())?;
                     let h = col.half_extents.unwrap_or_default();
-                    if !h.iter().all(|x| x.is_finite() && *x > 0.0 && *x <= max) {
+                    if !h.iter().all(|&x| range::size(x)) {
                         return Err(invalid(
                             key("half_extents"),
                             h,
-                            &format!("three finite numbers > 0 and at most {max:e} m"),
+                            &format!("three numbers, each {}", range::size_allowed()),
                         ));
                     }
                     finite3(&key("rotation"), col.rotation)?;
@@ -1244,11 +1235,11 @@ impl Scene {
             }
             finite3(&key("velocity"), col.velocity)?;
             finite3(&key("angular_velocity"), col.angular_velocity)?;
-            if !(col.thickness.is_finite() && (0.0..=max).contains(&col.thickness)) {
+            if !range::thickness(col.thickness) {
                 return Err(invalid(
                     key("thickness"),
                     col.thickness,
-                    &format!("a finite number >= 0 and at most {max:e} m"),
+                    &range::thickness_allowed(),
                 ));
             }
             non_negative(&key("friction.static"), col.friction.static_coefficient)?;

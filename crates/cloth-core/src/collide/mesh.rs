@@ -88,15 +88,14 @@ impl TriMesh {
                 "at least one triangle",
             ));
         }
-        let max = super::MAX_COLLIDER_EXTENT;
         if let Some(i) = vertices
             .iter()
-            .position(|v| !(v.is_finite() && v.abs().max_element() <= max))
+            .position(|v| !super::range::point(v.to_array()))
         {
             return Err(ClothError::invalid(
                 format!("mesh.vertices[{i}]"),
                 vertices[i],
-                format!("finite coordinates of magnitude at most {max:e} m"),
+                super::range::point_allowed(),
             ));
         }
         let n = vertices.len();

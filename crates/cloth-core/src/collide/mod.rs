@@ -251,6 +251,42 @@ impl Shape {
 /// passes compute overflow f32 (about 1.8·10¹⁹ m).
 pub const MAX_COLLIDER_EXTENT: f32 = 1.0e9;
 
+/// The ranges of a collider's coordinates, sizes and thickness: one definition for
+/// [`Collider::validate`] and for scene files, which name the fields their own way.
+pub(crate) mod range {
+    use super::MAX_COLLIDER_EXTENT as MAX;
+
+    /// A point or a vector of lengths: finite, each component at most [`MAX`] in magnitude.
+    pub(crate) fn point(v: [f32; 3]) -> bool {
+        v.iter().all(|x| x.is_finite() && x.abs() <= MAX)
+    }
+
+    /// What [`point`] allows, for messages.
+    pub(crate) fn point_allowed() -> String {
+        format!("three finite numbers of magnitude at most {MAX:e} m")
+    }
+
+    /// A radius or a half extent: finite, > 0 and at most [`MAX`].
+    pub(crate) fn size(v: f32) -> bool {
+        v.is_finite() && v > 0.0 && v <= MAX
+    }
+
+    /// What [`size`] allows, for messages.
+    pub(crate) fn size_allowed() -> String {
+        format!("a finite number > 0 and at most {MAX:e} m")
+    }
+
+    /// A contact thickness: finite, >= 0 and at most [`MAX`].
+    pub(crate) fn thickness(v: f32) -> bool {
+        v.is_finite() && (0.0..=MAX).contains(&v)
+    }
+
+    /// What [`thickness`] allows, for messages.
+    pub(crate) fn thickness_allowed() -> String {
+        format!("a finite number >= 0 and at most {MAX:e} m")
+    }
+}
+
 /// Depth below the contact surface within which the discrete contact passes find mesh
 /// contacts, m (see [`Collider::contact_range`]).
 pub const CONTACT_MARGIN: f32 = 0.05;
@@ -387,17 +423,18 @@ impl Collider {
     /// Checks every field (naming the collider by `index`) and normalises a plane's normal.
     pub fn validate(mut self, index: usize) -> Result<Self> {
         let name = |field: &str| format!("colliders[{index}].{field}");
-        let max = MAX_COLLIDER_EXTENT;
-        let point = |field: &str, v: Vec3| check::bounded_vec(&name(field), v, max);
-        let size = |field: &str, v: f32| {
-            if v.is_finite() && v > 0.0 && v <= max {
+        let point = |field: &str, v: Vec3| {
+            if range::point(v.to_array()) {
                 Ok(())
             } else {
-                Err(ClothError::invalid(
-                    name(field),
-                    v,
-                    format!("a finite number > 0 and at most {max:e} m"),
-                ))
+                Err(ClothError::invalid(name(field), v, range::point_allowed()))
+            }
+        };
+        let size = |field: &str, v: f32| {
+            if range::size(v) {
+                Ok(())
+            } else {
+                Err(ClothError::invalid(name(field), v, range::size_allowed()))
             }
         };
         match &mut self.shape {
@@ -454,11 +491,11 @@ impl Collider {
         }
         check::finite_vec(&name("velocity"), self.velocity)?;
         check::finite_vec(&name("angular_velocity"), self.angular_velocity)?;
-        if !(self.thickness.is_finite() && (0.0..=max).contains(&self.thickness)) {
+        if !range::thickness(self.thickness) {
             return Err(ClothError::invalid(
                 name("thickness"),
                 self.thickness,
-                format!("a finite number >= 0 and at most {max:e} m"),
+                range::thickness_allowed(),
             ));
         }
         check::non_negative(
