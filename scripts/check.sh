@@ -10,6 +10,9 @@ cargo fmt --all -- --check
 echo "== cargo clippy --all-targets -D warnings"
 cargo clippy --workspace --all-targets --locked -- -D warnings
 
+echo "== cloth-core without its default features (no scene files, no serde): the library builds"
+cargo clippy -p cloth-core --no-default-features --lib --locked -- -D warnings
+
 echo "== cargo doc (warnings denied)"
 RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked
 

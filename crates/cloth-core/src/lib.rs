@@ -1,8 +1,9 @@
 //! # cloth-core
 //!
 //! A mass-spring cloth simulator: a grid of particles joined by structural, shear and bending
-//! springs, under gravity, damping and air, colliding with spheres and planes, stepped by
-//! interchangeable integrators. No graphics dependencies.
+//! springs, under gravity, damping, air and wind, colliding with spheres, capsules, boxes,
+//! planes, triangle meshes and itself, stepped by interchangeable integrators (forward and
+//! symplectic Euler, position Verlet, implicit Euler, XPBD). No graphics dependencies.
 //!
 //! ## Conventions
 //! SI units throughout (metres, kilograms, seconds, newtons). Y is up; coordinates are
@@ -34,8 +35,12 @@
 //! - [`topology`]: springs by kind in one flat `Vec`, triangles;
 //! - [`config`]: every parameter, with units and defaults;
 //! - [`forces`]: gravity, springs, dashpots, damping, air;
-//! - [`collide`]: colliders and contact response with Coulomb friction;
+//! - [`collide`]: colliders and contact response with Coulomb friction, continuous collision,
+//!   self-collision;
 //! - [`diagnostics`]: per-step energies, strains, penetration, instability check;
+//! - [`presets`]: ready-made scenes built in code;
+//! - `scene` (feature `scene`, on by default): TOML scene files, the built-in scenes;
+//! - [`simd`]: the run-time choice of the fast path's instruction set;
 //! - [`Simulation`]: the step pipeline.
 
 // `unsafe` is denied everywhere but in `simd`, whose guarded calls of `#[target_feature]`
