@@ -140,6 +140,10 @@ struct SceneArgs {
         help = "Override a scene key in TOML syntax, e.g. --set forces.air.wind=[3,0,0] (repeatable)"
     )]
     set: Vec<String>,
+    /// Build the scene even if its memory estimate exceeds the memory available (or the
+    /// environment's CLOTH_MEMORY_LIMIT, a size such as 4GiB).
+    #[arg(long)]
+    force: bool,
 }
 
 /// A loaded scene with the resolution and integrator to build it with.
@@ -155,11 +159,24 @@ impl SceneArgs {
             eprintln!("error: {e}");
             ExitCode::from(2)
         })?;
-        Ok(Chosen {
+        let chosen = Chosen {
             resolution: self.resolution.unwrap_or_else(|| scene.resolution()),
             integrator: self.integrator.unwrap_or_else(|| scene.integrator()),
             scene,
-        })
+        };
+        // Refused before building, as `cloth sim` refuses it: building would take the memory.
+        let effective = chosen.scene.effective(chosen.resolution, chosen.integrator);
+        match sim_cmd::memory_refusal(&effective) {
+            Err(e) => {
+                eprintln!("error: {e}");
+                Err(ExitCode::from(2))
+            }
+            Ok(Some(refusal)) if !self.force => {
+                eprintln!("error: {refusal}");
+                Err(ExitCode::from(2))
+            }
+            Ok(_) => Ok(chosen),
+        }
     }
 }
 
@@ -197,6 +214,7 @@ fn run(cli: Cli) -> ExitCode {
             resolution: None,
             integrator: None,
             set: Vec::new(),
+            force: false,
         },
         frames: None,
         size: [1280, 800],

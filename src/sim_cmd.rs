@@ -330,10 +330,10 @@ fn summary(scene: &Scene) -> String {
 }
 
 /// Why a scene is refused for memory: its estimate exceeds the memory available or
-/// [`MEMORY_LIMIT_VAR`] (`Ok(None)` when it fits, or when neither is known). `cloth sim` and
-/// `cloth check` refuse it in these words unless `--force`; a malformed limit is an error
-/// even with `--force`.
-fn memory_refusal(scene: &Scene) -> Result<Option<String>, String> {
+/// [`MEMORY_LIMIT_VAR`] (`Ok(None)` when it fits, or when neither is known). `cloth sim`,
+/// `cloth check`, `cloth render` and `cloth view` refuse it in these words unless `--force`;
+/// a malformed limit is an error even with `--force`.
+pub fn memory_refusal(scene: &Scene) -> Result<Option<String>, String> {
     let (particles, _) = scene.counts();
     let mem = scene.memory_estimate();
     let Some((budget, source)) = memory_budget()? else {

@@ -963,9 +963,10 @@ fn every_exports_the_last_frame_too() {
 /// the same figures (it used to say "ok" for a scene `sim` refuses). The bound is set with
 /// `CLOTH_MEMORY_LIMIT` so that the test does not depend on the host's memory: at the largest
 /// resolution, 8192², the estimate is 36 GiB, over the 8 GiB limit; at 512² it is about
-/// 144 MiB, over a 64 MiB limit, and `--force` checks it.
+/// 144 MiB, over a 64 MiB limit (also for `cloth render` and `cloth view`), and `--force`
+/// checks it.
 #[test]
-fn check_refuses_a_scene_for_memory_as_sim_does() {
+fn every_command_refuses_a_scene_too_big_for_memory() {
     let needs = |err: &str| {
         err.split("needs about ")
             .nth(1)
@@ -1004,6 +1005,22 @@ fn check_refuses_a_scene_for_memory_as_sim_does() {
     );
     assert_eq!(code, 0, "{out}{err}");
     assert!(out.contains("particles=262144"), "{out}");
+    // `cloth render` and `cloth view` refuse it too, before building (so before any adapter
+    // or display is needed).
+    let png = std::env::temp_dir().join("cloth-memory-refusal.png");
+    let png = s(&png);
+    for cmd in [
+        &["render", "drape", "--resolution", "512", "--png", png][..],
+        &["view", "drape", "--resolution", "512", "--frames", "1"][..],
+    ] {
+        let (code, out, err) = cloth_env(cmd, &small);
+        assert_eq!(code, 2, "{cmd:?}: {out}{err}");
+        assert!(
+            err.contains("more than the 64 MiB CLOTH_MEMORY_LIMIT allows")
+                && err.contains("--force"),
+            "{cmd:?}: {err}"
+        );
+    }
     // A malformed limit is bad input, named, even with --force.
     for bad_limit in ["4GB", "0", "1.5GiB", "-1", " ", "99999999999GiB"] {
         for force in [false, true] {
