@@ -32,13 +32,22 @@ fn substeps_within(config: &SimConfig, limit: f32) -> u32 {
 /// (it is stable at any step); XPBD 20 substeps per 1/60 s. Never more than
 /// [`crate::config::MAX_SUBSTEPS`].
 pub fn tune_for_integrator(config: &mut SimConfig, cloth: &Cloth) {
-    let per_second = |rate: f32| {
-        // (A float-to-int cast saturates.)
-        ((config.dt * rate).ceil() as u32).clamp(1, crate::config::MAX_SUBSTEPS)
+    let per_frame = |substeps: f64| {
+        // dt in 1/60 s frames, in f64: the f32 nearest 1/60 lies 3·10⁻⁹ above it, and its
+        // 20 substeps per frame in f32 (20.000002) rounded up to 21. A count within a
+        // millionth of a whole number is that number. (A float-to-int cast saturates.)
+        let wanted = f64::from(config.dt) * 60.0 * substeps;
+        let whole = wanted.round();
+        let count = if (wanted - whole).abs() <= 1e-6 * whole {
+            whole
+        } else {
+            wanted.ceil()
+        };
+        (count as u32).clamp(1, crate::config::MAX_SUBSTEPS)
     };
     config.substeps = match config.integrator {
-        Integrator::ImplicitEuler => per_second(60.0),
-        Integrator::Xpbd => per_second(60.0 * 20.0),
+        Integrator::ImplicitEuler => per_frame(1.0),
+        Integrator::Xpbd => per_frame(20.0),
         _ => substeps_within(
             config,
             explicit_stability_limit_of(config, &cloth.topology, &cloth.particles),

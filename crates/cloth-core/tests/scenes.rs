@@ -479,6 +479,31 @@ fn shear_chains_key_reaches_the_config() {
     assert_eq!(line, 14, "{message}");
 }
 
+/// `substeps = "auto"` gives implicit Euler one substep and XPBD 20 per 1/60 s step, as
+/// docs/scenes.md says, at the f32 nearest 1/60 (`dt = 0.016666668`, a little above 1/60: its
+/// 20 substeps per frame once rounded up to 21) and in proportion at other steps.
+#[test]
+fn auto_substeps_per_frame_of_implicit_euler_and_xpbd() {
+    let substeps = |kind: &str, dt: &str| {
+        let src = GOOD.replace(
+            "radius = 0.5",
+            &format!("radius = 0.5\n[solver]\nkind = \"{kind}\"\ndt = {dt}\nsubsteps = \"auto\""),
+        );
+        let scene = Scene::from_toml(&src, "auto.toml").expect("parses");
+        scene.build().expect("build").config().substeps
+    };
+    for dt in ["0.016666668", "0.016666666"] {
+        assert_eq!(substeps("xpbd", dt), 20, "dt = {dt}");
+        assert_eq!(substeps("implicit-euler", dt), 1, "dt = {dt}");
+    }
+    assert_eq!(substeps("xpbd", "0.033333335"), 40);
+    assert_eq!(substeps("implicit-euler", "0.033333335"), 2);
+    // Not a whole number of frames: rounded up.
+    assert_eq!(substeps("xpbd", "0.0165625"), 20);
+    assert_eq!(substeps("xpbd", "0.02"), 24);
+    assert_eq!(substeps("implicit-euler", "0.02"), 2);
+}
+
 /// Which overrides set a key (what the viewer keeps when it adjusts a scene): the key, one
 /// under it, or the key inside a table value; not a key that merely starts with the same
 /// letters, nor another key of the same table.
