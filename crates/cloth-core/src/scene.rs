@@ -428,7 +428,8 @@ pub struct ColliderDesc {
     #[serde(default)]
     #[serde(deserialize_with = "exact")]
     pub rotation: [f32; 3],
-    /// Angular velocity about the pivot (centre; capsule midpoint; plane point), rad/s.
+    /// Angular velocity about the pivot (centre; capsule midpoint; plane point; a mesh's
+    /// position, its `center`), rad/s.
     /// Default `[0, 0, 0]`.
     #[serde(default)]
     #[serde(deserialize_with = "exact")]
@@ -567,7 +568,9 @@ pub struct SolverDesc {
     /// `{ tolerance, max_iterations }`.
     #[serde(default)]
     pub implicit: ImplicitDesc,
-    /// `{ iterations, tethers, tether_slack }`.
+    /// `{ iterations, tethers, tether_slack, hierarchy_levels, hierarchy_slack,
+    /// structural_limit, chains, chain_iterations, chain_rounds, shear_chains }` (see
+    /// [`XpbdDesc`]).
     #[serde(default)]
     pub xpbd: XpbdDesc,
     /// `{ max_stretch_ratio, max_speed }`.
@@ -1499,9 +1502,13 @@ impl Scene {
         // The builder names its arguments `grid.*`; here they are the scene's `cloth.*` keys.
         let cloth = grid.build().map_err(|e| renamed(e, "grid.", "cloth."))?;
         let config = self.config(&cloth);
-        // The configuration's `config.self_collision.*` are the scene's `solver.self_collision.*`.
-        let mut sim = Simulation::new(cloth, config)
-            .map_err(|e| renamed(e, "config.self_collision.", "solver.self_collision."))?;
+        // The configuration's `config.self_collision.*` are the scene's `solver.self_collision.*`,
+        // and its `config.dt` the scene's `solver.dt` (too short for the substeps "auto" chose:
+        // checked only here, where the substeps are known).
+        let mut sim = Simulation::new(cloth, config).map_err(|e| {
+            let e = renamed(e, "config.self_collision.", "solver.self_collision.");
+            renamed(e, "config.dt", "solver.dt")
+        })?;
         for (i, col) in self.colliders.iter().enumerate() {
             let shape = match col.kind {
                 ColliderKind::Sphere => Shape::Sphere {

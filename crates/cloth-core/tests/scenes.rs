@@ -504,6 +504,25 @@ fn auto_substeps_per_frame_of_implicit_euler_and_xpbd() {
     assert_eq!(substeps("implicit-euler", "0.02"), 2);
 }
 
+/// A step too short for the substeps "auto" chooses (at most `MAX_SUBSTEPS`, each at least
+/// `MIN_SUBSTEP_DT`), found only when the scene is built, is blamed on the scene's
+/// `solver.dt`, not on the library's `config.dt`.
+#[test]
+fn a_step_too_short_for_auto_substeps_names_solver_dt() {
+    let sets = [
+        "solver.dt=5e-5".to_string(),
+        "material.warp={stiffness=1e30}".to_string(),
+    ];
+    let (scene, _) = scene::load("drape", &sets).expect("the file's checks pass");
+    match scene.build() {
+        Err(ClothError::InvalidArgument { name, allowed, .. }) => {
+            assert_eq!(name, "solver.dt");
+            assert!(allowed.contains("at least 1e-9 s"), "{allowed}");
+        }
+        other => panic!("expected solver.dt to be refused, got {:?}", other.err()),
+    }
+}
+
 /// Which overrides set a key (what the viewer keeps when it adjusts a scene): the key, one
 /// under it, or the key inside a table value; not a key that merely starts with the same
 /// letters, nor another key of the same table.
