@@ -8,11 +8,38 @@ use anyhow::{Context, Result};
 use cloth_core::Topology;
 use cloth_core::glam::Vec3;
 
+/// Where a write to `path` lands: the path itself, or a symbolic link's target (the link is
+/// kept: the file it points to is replaced); and whether that is a file that is not a regular
+/// file (a device such as `/dev/stdout` or `/dev/null`, a FIFO), which is written in place:
+/// renaming over it would replace the device with a regular file.
+pub fn write_target(path: &Path) -> (PathBuf, bool) {
+    let target = match fs::symlink_metadata(path) {
+        Ok(m) if m.file_type().is_symlink() => {
+            fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())
+        }
+        _ => path.to_path_buf(),
+    };
+    let special = fs::metadata(&target).is_ok_and(|m| !m.is_file() && !m.is_dir());
+    (target, special)
+}
+
 /// Writes `bytes` to `path` atomically: a temporary file in the same folder, flushed and
 /// synced, then renamed over `path`. A run that is killed leaves either the old file or the
 /// whole new one, never a truncated file. When the write or the rename fails, the temporary
 /// file is removed: a failed write leaves `path` as it was and nothing beside it.
+///
+/// A symbolic link is followed (its target is replaced, the link kept), and a file that is
+/// not a regular file (`/dev/stdout`, a FIFO) is written in place ([`write_target`]).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let (path, special) = write_target(path);
+    let path = path.as_path();
+    if special {
+        return fs::OpenOptions::new()
+            .write(true)
+            .open(path)
+            .and_then(|mut f| f.write_all(bytes).and_then(|()| f.flush()))
+            .with_context(|| format!("cannot write {}", path.display()));
+    }
     let tmp = temporary_path(path);
     let mut file =
         fs::File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;

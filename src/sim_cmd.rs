@@ -568,6 +568,13 @@ fn check_writable_dir(dir: &Path) -> Result<()> {
 }
 
 pub(crate) fn check_writable_file(path: &Path, what: &str) -> Result<()> {
+    // A device or a FIFO is written in place (its folder need not take new files), a link's
+    // target replaced (its folder must take them).
+    let (target, special) = crate::export::write_target(path);
+    if special {
+        return Ok(());
+    }
+    let path = target.as_path();
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),

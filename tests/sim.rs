@@ -1037,3 +1037,47 @@ fn every_command_refuses_a_scene_too_big_for_memory() {
         }
     }
 }
+
+/// A report written through a symbolic link replaces the file the link points to and keeps
+/// the link; a report written to a FIFO (or a device such as `/dev/stdout`) is written into
+/// it, and the FIFO stays a FIFO: renaming a temporary file over it, as a regular file is
+/// replaced, used to turn it (and, as root, `/dev/full`) into a regular file.
+#[test]
+fn reports_follow_links_and_write_into_fifos() {
+    use std::os::unix::fs::FileTypeExt;
+    let guard = tmp("special-report");
+    let dir = guard.path();
+    let real = dir.join("real.json");
+    std::fs::write(&real, b"old").expect("write");
+    let link = dir.join("link.json");
+    std::os::unix::fs::symlink(&real, &link).expect("symlink");
+    let (code, out, err) = cloth(&["sim", "drape", "--frames", "2", "--report", s(&link)]);
+    assert_eq!(code, 0, "{out}{err}");
+    let meta = std::fs::symlink_metadata(&link).expect("link");
+    assert!(meta.file_type().is_symlink(), "the link was replaced");
+    let frames = |r: &serde_json::Value| r["frames"].as_array().map(Vec::len);
+    assert_eq!(frames(&report(&real)), Some(2));
+
+    let fifo = dir.join("report.fifo");
+    let made = Command::new("mkfifo").arg(&fifo).status().expect("mkfifo");
+    assert!(made.success());
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read(fifo).expect("read the fifo"))
+    };
+    let (code, out, err) = cloth(&["sim", "drape", "--frames", "2", "--report", s(&fifo)]);
+    assert_eq!(code, 0, "{out}{err}");
+    // Checked before joining: had the FIFO been replaced, its reader would wait for ever.
+    let kind = std::fs::symlink_metadata(&fifo).expect("fifo").file_type();
+    assert!(kind.is_fifo(), "the FIFO was replaced: {kind:?}");
+    let bytes = reader.join().expect("reader");
+    let json: serde_json::Value = serde_json::from_slice(&bytes).expect("the report, as JSON");
+    assert_eq!(frames(&json), Some(2));
+    let leftovers: Vec<_> = std::fs::read_dir(dir)
+        .expect("dir")
+        .flatten()
+        .map(|e| e.file_name())
+        .filter(|n| n.to_string_lossy().ends_with(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
