@@ -329,6 +329,28 @@ fn summary(scene: &Scene) -> String {
     )
 }
 
+/// A size in bytes as three significant digits of the largest binary unit it fills
+/// ("36.0 GiB", "144 MiB", "1.17 MiB", "512 B"): a scene's need and the bound it exceeds
+/// never print as the same figure unless they are within 1 % of each other.
+fn size_text(bytes: u64) -> String {
+    let mut value = bytes as f64;
+    let mut unit = 0;
+    while value >= 1024.0 && unit < 3 {
+        value /= 1024.0;
+        unit += 1;
+    }
+    let name = ["B", "KiB", "MiB", "GiB"][unit];
+    if unit == 0 {
+        format!("{bytes} B")
+    } else if value < 10.0 {
+        format!("{value:.2} {name}")
+    } else if value < 100.0 {
+        format!("{value:.1} {name}")
+    } else {
+        format!("{value:.0} {name}")
+    }
+}
+
 /// Why a scene is refused for memory: its estimate exceeds the memory available or
 /// [`MEMORY_LIMIT_VAR`] (`Ok(None)` when it fits, or when neither is known). `cloth sim`,
 /// `cloth check`, `cloth render` and `cloth view` refuse it in these words unless `--force`;
@@ -339,14 +361,7 @@ pub fn memory_refusal(scene: &Scene) -> Result<Option<String>, String> {
     let Some((budget, source)) = memory_budget()? else {
         return Ok(None);
     };
-    // GiB with one decimal, or whole MiB below 1 GiB.
-    let size = |b: u64| {
-        if b >= 1 << 30 {
-            format!("{:.1} GiB", b as f64 / f64::from(1u32 << 30))
-        } else {
-            format!("{:.0} MiB", b as f64 / f64::from(1u32 << 20))
-        }
-    };
+    let size = size_text;
     Ok((mem > budget).then(|| {
         let what = if source == MEMORY_LIMIT_VAR {
             format!("the {} {MEMORY_LIMIT_VAR} allows", size(budget))

@@ -988,7 +988,7 @@ fn every_command_refuses_a_scene_too_big_for_memory() {
         assert_eq!(err.trim().lines().count(), 1, "{err}");
         assert!(err.contains("--force"), "{err}");
         assert!(
-            err.contains("the 8.0 GiB CLOTH_MEMORY_LIMIT allows") || err.contains("GiB available"),
+            err.contains("the 8.00 GiB CLOTH_MEMORY_LIMIT allows") || err.contains("GiB available"),
             "{err}"
         );
     }
@@ -996,7 +996,7 @@ fn every_command_refuses_a_scene_too_big_for_memory() {
     let (code, out, err) = cloth_env(&["check", "drape", "--resolution", "512"], &small);
     assert_eq!(code, 2, "{out}{err}");
     assert!(
-        err.contains("(262144 particles), more than the 64 MiB CLOTH_MEMORY_LIMIT allows"),
+        err.contains("(262144 particles), more than the 64.0 MiB CLOTH_MEMORY_LIMIT allows"),
         "{err}"
     );
     let (code, out, err) = cloth_env(
@@ -1016,11 +1016,25 @@ fn every_command_refuses_a_scene_too_big_for_memory() {
         let (code, out, err) = cloth_env(cmd, &small);
         assert_eq!(code, 2, "{cmd:?}: {out}{err}");
         assert!(
-            err.contains("more than the 64 MiB CLOTH_MEMORY_LIMIT allows")
+            err.contains("more than the 64.0 MiB CLOTH_MEMORY_LIMIT allows")
                 && err.contains("--force"),
             "{cmd:?}: {err}"
         );
     }
+    // Three significant digits: the need and the bound never print as the same figure (the
+    // 48² drape needs about 1.2 MiB; it used to read "needs about 1 MiB, more than the 1 MiB").
+    let (code, out, err) = cloth_env(&["check", "drape"], &[("CLOTH_MEMORY_LIMIT", "1MiB")]);
+    assert_eq!(code, 2, "{out}{err}");
+    let need = err
+        .split("needs about ")
+        .nth(1)
+        .and_then(|r| r.split(" (").next())
+        .unwrap_or_else(|| panic!("{err}"));
+    assert!(need.ends_with(" MiB") && need != "1.00 MiB", "{err}");
+    assert!(
+        err.contains("more than the 1.00 MiB CLOTH_MEMORY_LIMIT allows"),
+        "{err}"
+    );
     // A malformed limit is bad input, named, even with --force.
     for bad_limit in ["4GB", "0", "1.5GiB", "-1", " ", "99999999999GiB"] {
         for force in [false, true] {
