@@ -267,13 +267,13 @@ fn available_memory() -> Option<u64> {
     Some(kb.saturating_mul(1024))
 }
 
-/// The environment variable that caps the memory `cloth sim` and `cloth check` may plan for
-/// (below what /proc/meminfo says is available), e.g. `CLOTH_MEMORY_LIMIT=4GiB` on a shared
-/// machine.
+/// The environment variable that caps the memory `cloth sim`, `check`, `render` and `view`
+/// plan for (below what /proc/meminfo says is available), e.g. `CLOTH_MEMORY_LIMIT=4GiB` on a
+/// shared machine.
 pub const MEMORY_LIMIT_VAR: &str = "CLOTH_MEMORY_LIMIT";
 
 /// A size in bytes: a whole number, optionally followed by `KiB`, `MiB` or `GiB`
-/// (`512MiB`, `4GiB`, `1048576`). `None` for anything else, zero, or over 2⁶⁴ bytes.
+/// (`512MiB`, `4GiB`, `1048576`). `None` for anything else, zero, or 2⁶⁴ bytes or more.
 fn parse_size(text: &str) -> Option<u64> {
     let t = text.trim();
     let (digits, unit) = match t.find(|c: char| !c.is_ascii_digit()) {
@@ -361,17 +361,16 @@ pub fn memory_refusal(scene: &Scene) -> Result<Option<String>, String> {
     let Some((budget, source)) = memory_budget()? else {
         return Ok(None);
     };
-    let size = size_text;
     Ok((mem > budget).then(|| {
         let what = if source == MEMORY_LIMIT_VAR {
-            format!("the {} {MEMORY_LIMIT_VAR} allows", size(budget))
+            format!("the {} {MEMORY_LIMIT_VAR} allows", size_text(budget))
         } else {
-            format!("the {} available", size(budget))
+            format!("the {} available", size_text(budget))
         };
         format!(
             "this scene needs about {} ({particles} particles), more than {what}; \
              lower cloth.resolution or pass --force",
-            size(mem)
+            size_text(mem)
         )
     }))
 }
