@@ -39,10 +39,12 @@ pub(crate) struct Tether {
 pub(crate) struct XpbdScratch {
     prev: Vec<Vec3>,
     lambda: Vec<f32>,
-    /// Tethers, rebuilt when the set of pinned particles changes.
+    /// Tethers, rebuilt when the set of pinned particles or the slack changes.
     tethers: Vec<Tether>,
     /// The pinned set the tethers were built for.
     tether_key: Vec<u32>,
+    /// The `tether_slack` bits the tethers' lengths were built with.
+    tether_slack: u32,
     /// Whether `tethers` were built (for `tether_key`; none when nothing is pinned).
     tethers_built: bool,
     /// Multi-resolution strain limits of the reference path: `(a, b, largest distance)`.
@@ -61,8 +63,9 @@ pub(crate) struct XpbdScratch {
 }
 
 impl XpbdScratch {
-    /// Rebuilds the tethers when the pinned set changed: every free particle is tethered to
-    /// its nearest pinned particle (by rest distance), at that distance times (1 + slack).
+    /// Rebuilds the tethers when the pinned set or the slack changed: every free particle is
+    /// tethered to its nearest pinned particle (by rest distance), at that distance times
+    /// (1 + slack).
     fn update_tethers(&mut self, ctx: &SubstepCtx<'_>) {
         let rest = ctx.rest;
         let p = &*ctx.particles;
@@ -75,13 +78,16 @@ impl XpbdScratch {
         // The pinned set is compared only when its size is unchanged (a count the compiler
         // vectorises; most cloths keep their pins, and many have none).
         let count = p.inv_mass.iter().filter(|&&w| w == 0.0).count();
+        let slack_bits = ctx.config.xpbd.tether_slack.to_bits();
         if self.tethers_built
+            && slack_bits == self.tether_slack
             && count == self.tether_key.len()
             && (count == 0 || self.tether_key.iter().copied().eq(pinned.clone()))
         {
             return;
         }
         self.tethers_built = true;
+        self.tether_slack = slack_bits;
         self.tether_key.clear();
         self.tether_key.extend(pinned);
         self.tethers.clear();
