@@ -181,6 +181,27 @@ fn check_speeds(
         .try_for_each(|(i, v)| check_speed(|| format!("{name}[{i}]"), v, config))
 }
 
+/// `config.limits.max_speed` at least the speed of every particle now (a slower limit would
+/// make every step fail the instability check), the error naming the limit and the fastest
+/// particle.
+fn check_limit_of_speeds(config: &SimConfig, velocity: &[Vec3]) -> Result<()> {
+    let most = config.limits.max_speed;
+    let speed = |i: usize| velocity[i].as_dvec3().length();
+    let fastest = (0..velocity.len()).fold(0, |a, i| if speed(i) > speed(a) { i } else { a });
+    if velocity.is_empty() || speed(fastest) <= f64::from(most) {
+        return Ok(());
+    }
+    Err(ClothError::invalid(
+        "config.limits.max_speed",
+        most,
+        format!(
+            "a finite number >= {:e} m/s, the speed of particle {fastest} now (every step \
+             would be reported unstable)",
+            speed(fastest) as f32
+        ),
+    ))
+}
+
 impl Simulation {
     /// The state needed to continue this simulation later to the same bits.
     #[must_use]
@@ -378,9 +399,16 @@ impl Simulation {
 
     /// Replaces the parameters (validated; on error nothing changes). Takes effect at the
     /// next step.
+    ///
+    /// # Errors
+    /// [`ClothError::InvalidArgument`] for a bad `config` ([`SimConfig::validate`]), a
+    /// self-collision thickness too large for the cloth's spacing, or a
+    /// `limits.max_speed` below the speed of a particle now (every step would be reported
+    /// unstable).
     pub fn set_config(&mut self, config: SimConfig) -> Result<()> {
         config.validate()?;
         check_for_cloth(&config, &self.topology)?;
+        check_limit_of_speeds(&config, &self.particles.velocity)?;
         self.config = config;
         self.refresh_stats();
         Ok(())
