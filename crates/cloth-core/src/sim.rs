@@ -428,7 +428,7 @@ impl Simulation {
         Ok(index)
     }
 
-    /// Replaces collider `index` (validated).
+    /// Replaces collider `index` (validated; on error nothing changes).
     pub fn set_collider(&mut self, index: usize, collider: Collider) -> Result<()> {
         if index >= self.colliders.len() {
             let allowed = match self.colliders.len() {
@@ -438,6 +438,7 @@ impl Simulation {
             return Err(ClothError::invalid("collider index", index, allowed));
         }
         self.colliders[index] = collider.validate(index)?;
+        self.refresh_stats();
         Ok(())
     }
 
