@@ -181,6 +181,18 @@ fn check_speeds(
         .try_for_each(|(i, v)| check_speed(|| format!("{name}[{i}]"), v, config))
 }
 
+/// Whether `shape`'s plane normal or box or mesh rotation has unit length to within f32
+/// rounding (as [`Collider::validate`] and a collider's motion leave it).
+fn is_unit(shape: &crate::collide::Shape) -> bool {
+    use crate::collide::Shape;
+    let length = match shape {
+        Shape::Plane { normal, .. } => normal.length(),
+        Shape::Box { rotation, .. } | Shape::Mesh { rotation, .. } => rotation.length(),
+        Shape::Sphere { .. } | Shape::Capsule { .. } => 1.0,
+    };
+    (length - 1.0).abs() <= 1e-6
+}
+
 /// `config.limits.max_speed` at least the speed of every particle now (a slower limit would
 /// make every step fail the instability check), the error naming the limit and the fastest
 /// particle.
@@ -227,6 +239,8 @@ impl Simulation {
     }
 
     /// Restores a state saved by [`state`](Self::state) from a simulation of the same scene.
+    /// A plane's normal or a box's or mesh's rotation that is not of unit length (an edited
+    /// state) is normalised, as [`add_collider`](Self::add_collider) normalises it.
     ///
     /// # Errors
     /// [`ClothError::InvalidArgument`] when the state does not fit this simulation (other
@@ -295,7 +309,11 @@ impl Simulation {
                 ),
             ));
         }
-        // Each saved shape must be a valid collider of the same kind as the scene's.
+        // Each saved shape must be a valid collider of the same kind as the scene's; a plane's
+        // normal or a box's or mesh's rotation off unit length by more than rounding (an
+        // edited checkpoint) is normalised as `add_collider` does, the saved bits kept
+        // otherwise (so that a checkpoint continues to the same bits).
+        let mut shapes = Vec::with_capacity(state.collider_shapes.len());
         for (i, (c, shape)) in self
             .colliders
             .iter()
@@ -309,11 +327,16 @@ impl Simulation {
                     "the same kind of shape as the scene's collider",
                 ));
             }
-            Collider {
+            let valid = Collider {
                 shape: shape.clone(),
                 ..c.clone()
             }
             .validate(i)?;
+            shapes.push(if is_unit(shape) {
+                shape.clone()
+            } else {
+                valid.shape
+            });
         }
         self.time = state.time;
         self.steps = state.steps;
@@ -324,8 +347,8 @@ impl Simulation {
             *dst = Vec3::from(*src);
         }
         self.particles.inv_mass.clone_from(&state.inv_mass);
-        for (c, shape) in self.colliders.iter_mut().zip(&state.collider_shapes) {
-            c.shape = shape.clone();
+        for (c, shape) in self.colliders.iter_mut().zip(shapes) {
+            c.shape = shape;
         }
         self.pin_target.fill(None);
         self.refresh_stats();
