@@ -164,19 +164,12 @@ impl SceneArgs {
             integrator: self.integrator.unwrap_or_else(|| scene.integrator()),
             scene,
         };
-        // Refused before building, as `cloth sim` refuses it: building would take the memory.
         let effective = chosen.scene.effective(chosen.resolution, chosen.integrator);
-        match sim_cmd::memory_refusal(&effective) {
-            Err(e) => {
-                eprintln!("error: {e}");
-                Err(ExitCode::from(2))
-            }
-            Ok(Some(refusal)) if !self.force => {
-                eprintln!("error: {refusal}");
-                Err(ExitCode::from(2))
-            }
-            Ok(_) => Ok(chosen),
-        }
+        sim_cmd::memory_gate(&effective, self.force).map_err(|refusal| {
+            eprintln!("error: {refusal}");
+            ExitCode::from(2)
+        })?;
+        Ok(chosen)
     }
 }
 

@@ -351,17 +351,20 @@ fn size_text(bytes: u64) -> String {
     }
 }
 
-/// Why a scene is refused for memory: its estimate exceeds the memory available or
-/// [`MEMORY_LIMIT_VAR`] (`Ok(None)` when it fits, or when neither is known). `cloth sim`,
-/// `cloth check`, `cloth render` and `cloth view` refuse it in these words unless `--force`;
-/// a malformed limit is an error even with `--force`.
-pub fn memory_refusal(scene: &Scene) -> Result<Option<String>, String> {
+/// Refuses a scene whose memory estimate exceeds the memory available or
+/// [`MEMORY_LIMIT_VAR`], unless `force` (`cloth sim`, `check`, `render` and `view` call it
+/// before building, which would take the memory): the error is the message to print. A
+/// malformed limit is refused even with `force`; a scene fits when neither bound is known.
+pub fn memory_gate(scene: &Scene, force: bool) -> Result<(), String> {
     let (particles, _) = scene.counts();
     let mem = scene.memory_estimate();
     let Some((budget, source)) = memory_budget()? else {
-        return Ok(None);
+        return Ok(());
     };
-    Ok((mem > budget).then(|| {
+    if force || mem <= budget {
+        return Ok(());
+    }
+    Err({
         let what = if source == MEMORY_LIMIT_VAR {
             format!("the {} {MEMORY_LIMIT_VAR} allows", size_text(budget))
         } else {
@@ -372,7 +375,7 @@ pub fn memory_refusal(scene: &Scene) -> Result<Option<String>, String> {
              lower cloth.resolution or pass --force",
             size_text(mem)
         )
-    }))
+    })
 }
 
 /// `cloth check`.
@@ -385,17 +388,9 @@ pub fn check(args: &CheckArgs) -> ExitCode {
             return ExitCode::from(EXIT_BAD_INPUT);
         }
     };
-    // Refused before building, as `cloth sim` refuses it: building would take the memory.
-    match memory_refusal(&scene) {
-        Err(e) => {
-            eprintln!("error: {e}");
-            return ExitCode::from(EXIT_BAD_INPUT);
-        }
-        Ok(Some(refusal)) if !args.force => {
-            eprintln!("error: {refusal}");
-            return ExitCode::from(EXIT_BAD_INPUT);
-        }
-        Ok(_) => {}
+    if let Err(refusal) = memory_gate(&scene, args.force) {
+        eprintln!("error: {refusal}");
+        return ExitCode::from(EXIT_BAD_INPUT);
     }
     let sim = match scene.build() {
         Ok(s) => s,
@@ -650,7 +645,9 @@ fn obj_name(n: u64) -> String {
 struct Export {
     /// `--out`; `None`: nothing is exported.
     dir: Option<PathBuf>,
+    /// `--format` has `obj` (used only with `dir`).
     obj: bool,
+    /// `--format` has `glb` (used only with `dir`).
     glb_wanted: bool,
     uvs: Vec<[f32; 2]>,
     normals: Vec<cloth_core::glam::Vec3>,
@@ -775,11 +772,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         }
     };
     let (particles, springs) = scene.counts();
-    if let Some(refusal) = memory_refusal(&scene).map_err(bad)?
-        && !args.force
-    {
-        return Err(bad(refusal));
-    }
+    memory_gate(&scene, args.force).map_err(bad)?;
     // 2. Outputs are checked before simulating.
     if let Some(dir) = &args.out {
         check_writable_dir(dir)?;
@@ -824,8 +817,8 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
     let (rows, cols) = sim.grid_size();
     let mut export = Export {
         dir: args.out.clone(),
-        obj: args.out.is_some() && args.format.contains(&Format::Obj),
-        glb_wanted: args.out.is_some() && args.format.contains(&Format::Glb),
+        obj: args.format.contains(&Format::Obj),
+        glb_wanted: args.format.contains(&Format::Glb),
         uvs: grid_uvs(rows, cols),
         normals: Vec::new(),
         glb,
@@ -965,7 +958,8 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
                 None => outln!("{line}"),
             }
         }
-        if frame.is_multiple_of(args.every) || frame == frames_total {
+        // (The last frame is exported after the loop, however the run ends.)
+        if frame.is_multiple_of(args.every) {
             export.frame(&sim, frame, stats.time)?;
         }
         if let Some(every) = args.checkpoint_every

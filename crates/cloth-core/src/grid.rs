@@ -168,16 +168,9 @@ impl Cloth {
             }
         }
         for (i, (&m, &w)) in p.mass.iter().zip(&p.inv_mass).enumerate() {
-            if !(m.is_finite() && m > 0.0 && (1.0 / m).is_finite()) {
-                return Err(ClothError::invalid(
-                    format!("cloth.particles.mass[{i}]"),
-                    m,
-                    format!(
-                        "a finite mass > 0 with a finite inverse (at least {:e} kg)",
-                        1.0 / f32::MAX
-                    ),
-                ));
-            }
+            crate::particles::check_mass(m).map_err(|allowed| {
+                ClothError::invalid(format!("cloth.particles.mass[{i}]"), m, allowed)
+            })?;
             if w != 0.0 && w != 1.0 / m {
                 return Err(ClothError::invalid(
                     format!("cloth.particles.inv_mass[{i}]"),
@@ -515,17 +508,16 @@ impl GridBuilder {
                 mass
             }
         };
-        if let Some(&m) = mass
+        if let Some((m, allowed)) = mass
             .iter()
-            .find(|&&m| !(m.is_finite() && m > 0.0 && (1.0 / m).is_finite()))
+            .find_map(|&m| crate::particles::check_mass(m).err().map(|a| (m, a)))
         {
             return Err(ClothError::invalid(
                 "grid.mass",
                 m,
                 format!(
-                    "a per-particle mass that is finite and > 0 with a finite inverse (at \
-                     least {:e} kg; density × cell area may have underflowed or overflowed)",
-                    1.0 / f32::MAX
+                    "per particle, {allowed}; density × cell area may have underflowed or \
+                     overflowed"
                 ),
             ));
         }

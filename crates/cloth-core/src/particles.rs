@@ -2,6 +2,20 @@
 
 use glam::{DVec3, Vec3};
 
+/// A particle mass the solvers can use: finite and `> 0` with a finite inverse; else what is
+/// allowed, in words (for [`GridBuilder`](crate::GridBuilder) and
+/// [`Cloth::validate`](crate::Cloth::validate)).
+pub(crate) fn check_mass(m: f32) -> Result<(), String> {
+    if m.is_finite() && m > 0.0 && (1.0 / m).is_finite() {
+        Ok(())
+    } else {
+        Err(format!(
+            "a finite mass > 0 with a finite inverse (at least {:e} kg)",
+            1.0 / f32::MAX
+        ))
+    }
+}
+
 /// The particles of a cloth, one entry per particle in each array (structure of arrays).
 ///
 /// A particle with `inv_mass == 0` is pinned: no force moves it, and it follows its

@@ -70,6 +70,10 @@ pub struct Scene {
     pub camera: Option<CameraDesc>,
 }
 
+/// Shortest distance from a `[camera]`'s eye to its target, m: closer, the camera has no
+/// direction to look in (refused in a scene file; the viewer looks at the target from 2.5 m).
+pub const MIN_CAMERA_DISTANCE: f32 = 1e-6;
+
 /// Longest `duration` of a scene, s (11.6 days of simulated time; `cloth sim --seconds` has
 /// the same bound).
 pub const MAX_DURATION: f32 = 1.0e6;
@@ -1136,19 +1140,10 @@ impl Scene {
         for (i, col) in self.colliders.iter().enumerate() {
             let key = |k: &str| format!("colliders[{i}].{k}");
             let point = |k: &str, v: [f32; 3]| {
-                if range::point(v) {
-                    Ok(())
-                } else {
-                    Err(invalid(key(k), v, &range::point_allowed()))
-                }
+                range::point(v).map_err(|allowed| invalid(key(k), v, &allowed))
             };
-            let size = |k: &str, v: f32| {
-                if range::size(v) {
-                    Ok(())
-                } else {
-                    Err(invalid(key(k), v, &range::size_allowed()))
-                }
-            };
+            let size =
+                |k: &str, v: f32| range::size(v).map_err(|allowed| invalid(key(k), v, &allowed));
             // The keys each kind reads (`rotation` and the motion keys have defaults).
             let (kind, needs): (&str, &[&str]) = match col.kind {
                 ColliderKind::Sphere => ("sphere", &["center", "radius"]),
@@ -1215,11 +1210,11 @@ impl Scene {
                 ColliderKind::Box => {
                     point("center", col.center.unwrap_or_default())?;
                     let h = col.half_extents.unwrap_or_default();
-                    if !h.iter().all(|&x| range::size(x)) {
+                    if let Some(allowed) = h.iter().find_map(|&x| range::size(x).err()) {
                         return Err(invalid(
                             key("half_extents"),
                             h,
-                            &format!("three numbers, each {}", range::size_allowed()),
+                            &format!("three numbers, each {allowed}"),
                         ));
                     }
                     finite3(&key("rotation"), col.rotation)?;
@@ -1238,13 +1233,8 @@ impl Scene {
             }
             finite3(&key("velocity"), col.velocity)?;
             finite3(&key("angular_velocity"), col.angular_velocity)?;
-            if !range::thickness(col.thickness) {
-                return Err(invalid(
-                    key("thickness"),
-                    col.thickness,
-                    &range::thickness_allowed(),
-                ));
-            }
+            range::thickness(col.thickness)
+                .map_err(|allowed| invalid(key("thickness"), col.thickness, &allowed))?;
             non_negative(&key("friction.static"), col.friction.static_coefficient)?;
             non_negative(&key("friction.kinetic"), col.friction.kinetic_coefficient)?;
         }
@@ -1367,12 +1357,12 @@ impl Scene {
         if let Some(cam) = &self.camera {
             finite3("camera.eye", cam.eye)?;
             finite3("camera.target", cam.target)?;
-            if Vec3::from(cam.eye).distance(Vec3::from(cam.target)) < 1e-6 {
+            if Vec3::from(cam.eye).distance(Vec3::from(cam.target)) < MIN_CAMERA_DISTANCE {
                 return Err(problem(
                     "camera.target",
                     format!(
                         "{:?} is where `camera.eye` is: the camera has no direction to look \
-                         in (allowed a target at least 1e-6 m from the eye)",
+                         in (allowed a target at least {MIN_CAMERA_DISTANCE:e} m from the eye)",
                         cam.target
                     ),
                 ));

@@ -169,16 +169,29 @@ fn check_speed(name: impl FnOnce() -> String, velocity: Vec3, config: &SimConfig
     Ok(())
 }
 
-/// [`check_speed`] of every velocity, the error naming `name[i]`.
+/// The fastest of `velocity`: its index, velocity and speed (m/s, in f64); the first of
+/// equals; `None` when there is none.
+fn fastest(velocity: impl IntoIterator<Item = Vec3>) -> Option<(usize, Vec3, f64)> {
+    velocity
+        .into_iter()
+        .enumerate()
+        .map(|(i, v)| (i, v, v.as_dvec3().length()))
+        .fold(None, |best, next| match best {
+            Some(b) if b.2 >= next.2 => Some(b),
+            _ => Some(next),
+        })
+}
+
+/// [`check_speed`] of the fastest velocity, the error naming `name[i]`.
 fn check_speeds(
     name: &str,
     velocity: impl IntoIterator<Item = Vec3>,
     config: &SimConfig,
 ) -> Result<()> {
-    velocity
-        .into_iter()
-        .enumerate()
-        .try_for_each(|(i, v)| check_speed(|| format!("{name}[{i}]"), v, config))
+    match fastest(velocity) {
+        Some((i, v, _)) => check_speed(|| format!("{name}[{i}]"), v, config),
+        None => Ok(()),
+    }
 }
 
 /// Whether `shape`'s plane normal or box or mesh rotation has unit length to within f32
@@ -198,20 +211,18 @@ fn is_unit(shape: &crate::collide::Shape) -> bool {
 /// particle.
 fn check_limit_of_speeds(config: &SimConfig, velocity: &[Vec3]) -> Result<()> {
     let most = config.limits.max_speed;
-    let speed = |i: usize| velocity[i].as_dvec3().length();
-    let fastest = (0..velocity.len()).fold(0, |a, i| if speed(i) > speed(a) { i } else { a });
-    if velocity.is_empty() || speed(fastest) <= f64::from(most) {
-        return Ok(());
+    match fastest(velocity.iter().copied()) {
+        Some((i, _, speed)) if speed > f64::from(most) => Err(ClothError::invalid(
+            "config.limits.max_speed",
+            most,
+            format!(
+                "a finite number >= {:e} m/s, the speed of particle {i} now (every step \
+                 would be reported unstable)",
+                speed as f32
+            ),
+        )),
+        _ => Ok(()),
     }
-    Err(ClothError::invalid(
-        "config.limits.max_speed",
-        most,
-        format!(
-            "a finite number >= {:e} m/s, the speed of particle {fastest} now (every step \
-             would be reported unstable)",
-            speed(fastest) as f32
-        ),
-    ))
 }
 
 impl Simulation {

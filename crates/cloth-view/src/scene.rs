@@ -5,10 +5,6 @@ use cloth_core::glam::Vec3;
 use cloth_core::scene::{self, ColliderKind, Scene, SubstepsDesc};
 use cloth_core::{ClothError, Integrator, Simulation};
 
-/// A `[camera]` whose eye is closer than this to its target, m, has no direction to look in:
-/// [`SceneKind::start_view`] looks at the target from 2.5 m instead.
-pub const SAME_POINT: f32 = 1e-6;
-
 /// A scene to view: its name (a built-in name or the file path) and its description.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SceneKind {
@@ -128,8 +124,8 @@ impl SceneKind {
     /// `[camera]` (eye, target, `fov_degrees`); for the main built-in scenes (drape, hanging,
     /// peer-ball, flag) a hand-tuned framing at [`crate::FOVY`] instead, unless `--set camera…`
     /// changed their `[camera]`; a scene without one is looked at from 2.5 m, and so is the
-    /// `[camera]`'s target when its eye is on it (closer than [`SAME_POINT`]: no direction to
-    /// look in).
+    /// `[camera]`'s target when its eye is on it (closer than
+    /// [`scene::MIN_CAMERA_DISTANCE`]: no direction to look in).
     #[must_use]
     pub fn start_view(&self) -> (crate::Camera, f32) {
         let tuned = match self.name.as_str() {
@@ -146,7 +142,7 @@ impl SceneKind {
             }
             (None, Some(c)) => {
                 let (eye, target) = (Vec3::from(c.eye), Vec3::from(c.target));
-                let camera = if eye.distance(target) < SAME_POINT {
+                let camera = if eye.distance(target) < scene::MIN_CAMERA_DISTANCE {
                     crate::Camera::looking_at(target, 2.5)
                 } else {
                     crate::Camera::new(eye, target)

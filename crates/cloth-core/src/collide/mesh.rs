@@ -88,15 +88,10 @@ impl TriMesh {
                 "at least one triangle",
             ));
         }
-        if let Some(i) = vertices
-            .iter()
-            .position(|v| !super::range::point(v.to_array()))
-        {
-            return Err(ClothError::invalid(
-                format!("mesh.vertices[{i}]"),
-                vertices[i],
-                super::range::point_allowed(),
-            ));
+        for (i, v) in vertices.iter().enumerate() {
+            super::range::point(v.to_array()).map_err(|allowed| {
+                ClothError::invalid(format!("mesh.vertices[{i}]"), *v, allowed)
+            })?;
         }
         let n = vertices.len();
         let mut face_normals = Vec::with_capacity(triangles.len());

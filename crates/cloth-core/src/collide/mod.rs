@@ -252,38 +252,38 @@ impl Shape {
 pub const MAX_COLLIDER_EXTENT: f32 = 1.0e9;
 
 /// The ranges of a collider's coordinates, sizes and thickness: one definition for
-/// [`Collider::validate`] and for scene files, which name the fields their own way.
+/// [`Collider::validate`], mesh vertices and scene files, which name the fields their own way.
+/// Each check returns what is allowed, in words, when the value is outside it.
 pub(crate) mod range {
     use super::MAX_COLLIDER_EXTENT as MAX;
 
     /// A point or a vector of lengths: finite, each component at most [`MAX`] in magnitude.
-    pub(crate) fn point(v: [f32; 3]) -> bool {
-        v.iter().all(|x| x.is_finite() && x.abs() <= MAX)
-    }
-
-    /// What [`point`] allows, for messages.
-    pub(crate) fn point_allowed() -> String {
-        format!("three finite numbers of magnitude at most {MAX:e} m")
+    pub(crate) fn point(v: [f32; 3]) -> Result<(), String> {
+        if v.iter().all(|x| x.is_finite() && x.abs() <= MAX) {
+            Ok(())
+        } else {
+            Err(format!(
+                "three finite numbers of magnitude at most {MAX:e} m"
+            ))
+        }
     }
 
     /// A radius or a half extent: finite, > 0 and at most [`MAX`].
-    pub(crate) fn size(v: f32) -> bool {
-        v.is_finite() && v > 0.0 && v <= MAX
-    }
-
-    /// What [`size`] allows, for messages.
-    pub(crate) fn size_allowed() -> String {
-        format!("a finite number > 0 and at most {MAX:e} m")
+    pub(crate) fn size(v: f32) -> Result<(), String> {
+        if v.is_finite() && v > 0.0 && v <= MAX {
+            Ok(())
+        } else {
+            Err(format!("a finite number > 0 and at most {MAX:e} m"))
+        }
     }
 
     /// A contact thickness: finite, >= 0 and at most [`MAX`].
-    pub(crate) fn thickness(v: f32) -> bool {
-        v.is_finite() && (0.0..=MAX).contains(&v)
-    }
-
-    /// What [`thickness`] allows, for messages.
-    pub(crate) fn thickness_allowed() -> String {
-        format!("a finite number >= 0 and at most {MAX:e} m")
+    pub(crate) fn thickness(v: f32) -> Result<(), String> {
+        if v.is_finite() && (0.0..=MAX).contains(&v) {
+            Ok(())
+        } else {
+            Err(format!("a finite number >= 0 and at most {MAX:e} m"))
+        }
     }
 }
 
@@ -424,18 +424,24 @@ impl Collider {
     pub fn validate(mut self, index: usize) -> Result<Self> {
         let name = |field: &str| format!("colliders[{index}].{field}");
         let point = |field: &str, v: Vec3| {
-            if range::point(v.to_array()) {
-                Ok(())
-            } else {
-                Err(ClothError::invalid(name(field), v, range::point_allowed()))
-            }
+            range::point(v.to_array())
+                .map_err(|allowed| ClothError::invalid(name(field), v, allowed))
         };
         let size = |field: &str, v: f32| {
-            if range::size(v) {
-                Ok(())
-            } else {
-                Err(ClothError::invalid(name(field), v, range::size_allowed()))
+            range::size(v).map_err(|allowed| ClothError::invalid(name(field), v, allowed))
+        };
+        // A box's or mesh's rotation: a finite quaternion of unit length (within 1e-3),
+        // normalised.
+        let unit_rotation = |rotation: &mut Quat| {
+            if !rotation.is_finite() || (rotation.length() - 1.0).abs() > 1e-3 {
+                return Err(ClothError::invalid(
+                    name("rotation"),
+                    *rotation,
+                    "a finite unit quaternion",
+                ));
             }
+            *rotation = rotation.normalize();
+            Ok(())
         };
         match &mut self.shape {
             Shape::Sphere { center, radius } => {
@@ -466,38 +472,19 @@ impl Collider {
                 size("half_extents.x", half_extents.x)?;
                 size("half_extents.y", half_extents.y)?;
                 size("half_extents.z", half_extents.z)?;
-                if !rotation.is_finite() || (rotation.length() - 1.0).abs() > 1e-3 {
-                    return Err(ClothError::invalid(
-                        name("rotation"),
-                        *rotation,
-                        "a finite unit quaternion",
-                    ));
-                }
-                *rotation = rotation.normalize();
+                unit_rotation(rotation)?;
             }
             Shape::Mesh {
                 position, rotation, ..
             } => {
                 point("position", *position)?;
-                if !rotation.is_finite() || (rotation.length() - 1.0).abs() > 1e-3 {
-                    return Err(ClothError::invalid(
-                        name("rotation"),
-                        *rotation,
-                        "a finite unit quaternion",
-                    ));
-                }
-                *rotation = rotation.normalize();
+                unit_rotation(rotation)?;
             }
         }
         check::finite_vec(&name("velocity"), self.velocity)?;
         check::finite_vec(&name("angular_velocity"), self.angular_velocity)?;
-        if !range::thickness(self.thickness) {
-            return Err(ClothError::invalid(
-                name("thickness"),
-                self.thickness,
-                range::thickness_allowed(),
-            ));
-        }
+        range::thickness(self.thickness)
+            .map_err(|allowed| ClothError::invalid(name("thickness"), self.thickness, allowed))?;
         check::non_negative(
             &name("friction.static_coefficient"),
             self.friction.static_coefficient,
