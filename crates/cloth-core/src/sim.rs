@@ -550,7 +550,9 @@ impl Simulation {
     }
 
     /// Moves pinned particle `i` to `target` (m) over the next step, at constant velocity:
-    /// an animated attachment. Call it before every step to follow a path.
+    /// an animated attachment. Call it before every step to follow a path. The target is at
+    /// most `limits.max_speed · dt` from the particle (a faster pin would tear the cloth
+    /// apart and make every step fail).
     pub fn set_pin_target(&mut self, i: usize, target: Vec3) -> Result<()> {
         self.check_index("set_pin_target", i)?;
         check::finite_vec("set_pin_target.target", target)?;
@@ -559,6 +561,19 @@ impl Simulation {
                 "set_pin_target index",
                 i,
                 "a pinned particle (pin it first)",
+            ));
+        }
+        let distance = (target.as_dvec3() - self.particles.position[i].as_dvec3()).length();
+        let reach = f64::from(self.config.limits.max_speed) * f64::from(self.config.dt);
+        if distance > reach {
+            return Err(ClothError::invalid(
+                "set_pin_target.target",
+                target,
+                format!(
+                    "a point at most {reach:.4e} m from the particle's position {} (\
+                     `limits.max_speed` × `dt` = {} m/s × {} s; it is {distance:.4e} m away)",
+                    self.particles.position[i], self.config.limits.max_speed, self.config.dt
+                ),
             ));
         }
         self.pin_target[i] = Some(target);
@@ -651,8 +666,8 @@ impl Simulation {
             }
         }
         if let Some(sc) = self.config.self_collision {
-            self.solver.self_contacts(
-                &self.particles.position,
+            crate::collide::self_collision::layer_contacts(
+                &self.particles,
                 &self.rest_position,
                 1.05 * sc.thickness,
                 out,
@@ -832,19 +847,34 @@ impl Simulation {
             self.particles.position.clone_from(&self.backup_position);
             self.particles.velocity.clone_from(&self.backup_velocity);
             self.colliders.clone_from(&self.backup_colliders);
+            let mut hint = instability_hint(
+                &self.config,
+                crate::diagnostics::explicit_stability_limit_of(
+                    &self.config,
+                    &self.topology,
+                    &self.particles,
+                ),
+            );
+            // The step's pin targets are the user's input: name the fastest.
+            let pins = self
+                .pin_target
+                .iter()
+                .enumerate()
+                .filter_map(|(i, t)| t.map(|t| (i, (t - self.particles.position[i]) / dt)));
+            let (index, velocity): (Vec<_>, Vec<_>) = pins.unzip();
+            if let Some((k, _, speed)) = fastest(velocity) {
+                hint.push_str(&format!(
+                    "; this step's pin targets (`set_pin_target`) move particle {} at up to \
+                     {speed:.3e} m/s",
+                    index[k]
+                ));
+            }
             return Err(ClothError::Unstable {
                 step: self.steps,
                 time: self.time,
                 particle: bad.particle,
                 reason: bad.reason,
-                hint: instability_hint(
-                    &self.config,
-                    crate::diagnostics::explicit_stability_limit_of(
-                        &self.config,
-                        &self.topology,
-                        &self.particles,
-                    ),
-                ),
+                hint,
             });
         }
         self.pin_target.fill(None);

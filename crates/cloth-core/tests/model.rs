@@ -749,6 +749,45 @@ fn bad_colliders_are_rejected_and_leave_simulation_unchanged() {
     }
 }
 
+/// A pin target further than `limits.max_speed · dt` from its particle (a pin faster than the
+/// speed limit) is refused naming `set_pin_target.target` and the bound, and changes nothing;
+/// one just within it is accepted. A step that a fast pin target makes fail says so in its
+/// hint, naming the pinned particle and its speed (10 m in one 1/60 s step: 600 m/s).
+#[test]
+fn pin_targets_faster_than_the_speed_limit() {
+    let mut sim = Simulation::new(small_cloth(), SimConfig::default()).unwrap();
+    let pinned = (0..sim.particles().len())
+        .find(|&i| sim.particles().is_pinned(i))
+        .expect("a pinned corner");
+    let at = sim.particles().position[pinned];
+    let reach = sim.config().limits.max_speed * sim.config().dt;
+    let before = sim.particles().clone();
+    assert_invalid(
+        sim.set_pin_target(pinned, at + Vec3::new(1.01 * reach, 0.0, 0.0)),
+        "set_pin_target.target",
+        "limits.max_speed",
+    );
+    assert_eq!(sim.particles(), &before);
+    sim.step().expect("the refused target was not kept");
+    assert_eq!(sim.particles().position[pinned], at);
+
+    sim.set_pin_target(pinned, at + Vec3::new(0.99 * reach, 0.0, 0.0))
+        .expect("within max_speed · dt");
+
+    let mut sim = Simulation::new(small_cloth(), SimConfig::default()).unwrap();
+    sim.set_pin_target(pinned, at + Vec3::new(10.0, 0.0, 0.0))
+        .expect("10 m: within the speed limit");
+    let Err(ClothError::Unstable { hint, .. }) = sim.step() else {
+        panic!("a corner pulled 10 m in one step tears the cloth");
+    };
+    assert!(
+        hint.contains("set_pin_target")
+            && hint.contains(&format!("particle {pinned}"))
+            && hint.contains("6.000e2 m/s"),
+        "{hint}"
+    );
+}
+
 /// Bad API arguments: out-of-range particle indices give `IndexOutOfRange` naming the
 /// call; non-finite positions, velocities and pin targets give `InvalidArgument`;
 /// `set_pin_target` on a free particle is refused. None of them changes the particles.

@@ -445,6 +445,88 @@ fn contacts_list_collider_and_layer_contacts() {
     }
 }
 
+/// The brute-force layer contacts of `sim`'s current state: every ordered pair (i, j), not both
+/// pinned, closer than `reach` and at least `reach` apart in the rest shape.
+fn layer_pairs_by_brute_force(sim: &Simulation, reach: f32) -> Vec<(u32, u32)> {
+    let (x, rest, p) = (
+        &sim.particles().position,
+        sim.rest_positions(),
+        sim.particles(),
+    );
+    let mut pairs = Vec::new();
+    for i in 0..x.len() {
+        for j in 0..x.len() {
+            let d = x[i].distance(x[j]);
+            if i != j
+                && !(p.is_pinned(i) && p.is_pinned(j))
+                && d < reach
+                && d > 0.0
+                && rest[i].distance(rest[j]) >= reach
+            {
+                pairs.push((i as u32, j as u32));
+            }
+        }
+    }
+    pairs
+}
+
+/// `Simulation::contacts` describes the current state, not the last step's cached pair list:
+/// it lists exactly the brute-force layer contacts (pairs closer than 1.05 × the thickness,
+/// further apart than that at rest) after the settled `pile` (tolerance: exact set equality),
+/// right after a particle is teleported onto another layer, after self-collision is switched
+/// on by `set_config` before any step, and with a thicker layer set mid-run.
+#[test]
+fn contacts_are_those_of_the_current_state() {
+    let layer_pairs = |sim: &Simulation| {
+        let mut out = Vec::new();
+        sim.contacts(&mut out);
+        let mut pairs: Vec<(u32, u32)> = out
+            .iter()
+            .filter_map(|c| match c.with {
+                cloth_core::ContactWith::Cloth(j) => Some((c.particle, j)),
+                cloth_core::ContactWith::Collider(_) => None,
+            })
+            .collect();
+        pairs.sort_unstable();
+        pairs
+    };
+    let mut scene = builtin("pile").expect("pile");
+    scene.cloth.resolution = [14, 14];
+    let mut sim = scene.build().expect("build");
+    for _ in 0..120 {
+        sim.step().expect("step");
+    }
+    let reach = |sim: &Simulation| 1.05 * sim.config().self_collision.expect("on").thickness;
+    let settled = layer_pairs(&sim);
+    assert!(!settled.is_empty(), "the heap has layers in contact");
+    assert_eq!(settled, layer_pairs_by_brute_force(&sim, reach(&sim)));
+
+    // Particle 0 put 1 mm beside the cloth's last particle, which is far from it at rest.
+    let last = sim.particles().len() - 1;
+    let target = sim.particles().position[last] + Vec3::new(0.001, 0.0, 0.0);
+    sim.set_position(0, target).expect("teleport");
+    let teleported = layer_pairs(&sim);
+    assert!(teleported.contains(&(0, last as u32)), "{teleported:?}");
+    assert_eq!(teleported, layer_pairs_by_brute_force(&sim, reach(&sim)));
+
+    // A thicker layer: more pairs, found before the next step.
+    let mut config = *sim.config();
+    config.self_collision.as_mut().expect("on").thickness *= 1.5;
+    sim.set_config(config).expect("thicker");
+    let thicker = layer_pairs(&sim);
+    assert!(thicker.len() > teleported.len(), "{} pairs", thicker.len());
+    assert_eq!(thicker, layer_pairs_by_brute_force(&sim, reach(&sim)));
+
+    // Self-collision off, then on again before any step.
+    let mut config = *sim.config();
+    let on = config.self_collision.take();
+    sim.set_config(config).expect("off");
+    assert!(layer_pairs(&sim).is_empty());
+    config.self_collision = on;
+    sim.set_config(config).expect("on");
+    assert_eq!(layer_pairs(&sim), thicker);
+}
+
 /// A self-collision thickness over 16 grid spacings (the pair search's candidates grow with
 /// its square: 2 m on the 128² drape would make every pair of the 16,384 particles a
 /// candidate) is refused by `Simulation::new` and `set_config` naming

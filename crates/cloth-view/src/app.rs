@@ -162,7 +162,14 @@ impl World {
     /// simulation keeps its last good state and the world pauses.
     fn step(&mut self, grab: Option<(usize, Vec3)>) -> bool {
         if let Some((i, target)) = grab {
-            let _ = self.sim.set_pin_target(i, target);
+            // A drag faster than the speed limit follows the cursor at that limit (the
+            // library refuses a faster pin target).
+            let config = self.sim.config();
+            let reach = 0.99 * config.limits.max_speed * config.dt;
+            let at = self.sim.particles().position[i];
+            let _ = self
+                .sim
+                .set_pin_target(i, at + (target - at).clamp_length_max(reach));
         }
         match self.sim.step() {
             Ok(_) => true,

@@ -119,41 +119,6 @@ pub(crate) struct SelfCollisionScratch {
 }
 
 impl SelfCollisionScratch {
-    /// Pairs of the candidate list closer than `reach` that were at least `reach` apart in the
-    /// rest shape (layers touching, not neighbours), as contacts of both particles.
-    pub(crate) fn contacts(
-        &self,
-        position: &[Vec3],
-        rest: &[Vec3],
-        reach: f32,
-        out: &mut Vec<crate::sim::Contact>,
-    ) {
-        use crate::sim::{Contact, ContactWith};
-        for &(i, j, _) in &self.pairs {
-            let (iu, ju) = (i as usize, j as usize);
-            if iu >= position.len() || ju >= position.len() {
-                continue;
-            }
-            let d = position[iu] - position[ju];
-            let len = d.length();
-            // Rest neighbours (closer than `reach` in the rest shape) are not layer contacts.
-            if len >= reach || rest[iu].distance(rest[ju]) < reach || len == 0.0 {
-                continue;
-            }
-            let n = d / len;
-            out.push(Contact {
-                particle: i,
-                normal: n,
-                with: ContactWith::Cloth(j),
-            });
-            out.push(Contact {
-                particle: j,
-                normal: -n,
-                with: ContactWith::Cloth(i),
-            });
-        }
-    }
-
     /// Makes sure the pair list covers every pair that can be closer than `thickness` now.
     fn refresh(&mut self, particles: &Particles, rest: &[Vec3], thickness: f32) {
         let margin = 0.5 * thickness;
@@ -174,50 +139,101 @@ impl SelfCollisionScratch {
         self.anchor.clone_from(&particles.position);
         let radius = thickness + 2.0 * margin;
         self.hash.build(&particles.position, radius);
-        let inv = 1.0 / radius;
         self.pairs.clear();
         // Room for 12 candidate pairs per particle (a flat sheet has about 6 within R, two
         // layers in contact about 12), so that a step does not allocate after the first
         // unless the cloth is heaped denser than that.
         self.pairs.reserve(12 * n);
-        let r2 = radius * radius;
-        for i in 0..n {
-            let first = self.pairs.len();
-            let xi = particles.position[i];
-            let ci = cell_coord(xi, inv);
-            for dz in -1..=1 {
-                for dy in -1..=1 {
-                    for dx in -1..=1 {
-                        // Wrapping: a cell coordinate saturates at i32::MAX for a particle
-                        // far out or a tiny thickness, and its neighbour then wraps (the hash
-                        // wraps anyway; candidates are checked by distance below).
-                        let h = self.hash.hash(ci.wrapping_add(IVec3::new(dx, dy, dz))) as usize;
-                        let (a, b) = (self.hash.start[h] as usize, self.hash.start[h + 1] as usize);
-                        for &j in &self.hash.entries[a..b] {
-                            let ju = j as usize;
-                            if ju <= i
-                                || particles.inv_mass[i] + particles.inv_mass[ju] == 0.0
-                                || xi.distance_squared(particles.position[ju]) >= r2
-                            {
-                                continue;
-                            }
-                            let d_min = thickness.min(rest[i].distance(rest[ju]));
-                            self.pairs.push((i as u32, j, d_min));
+        collect_pairs(&self.hash, particles, radius, &mut self.pairs, |i, j| {
+            thickness.min(rest[i].distance(rest[j]))
+        });
+    }
+}
+
+/// Appends to `pairs`, for each particle i in index order, every particle j > i closer than
+/// `radius` to it (pairs of two pinned particles left out), in ascending order of j, with
+/// `value(i, j)`. `hash` must have been built from `particles.position` with cells of
+/// `radius`.
+fn collect_pairs<T>(
+    hash: &SpatialHash,
+    particles: &Particles,
+    radius: f32,
+    pairs: &mut Vec<(u32, u32, T)>,
+    value: impl Fn(usize, usize) -> T,
+) {
+    let inv = 1.0 / radius;
+    let r2 = radius * radius;
+    for (i, &xi) in particles.position.iter().enumerate() {
+        let first = pairs.len();
+        let ci = cell_coord(xi, inv);
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    // Wrapping: a cell coordinate saturates at i32::MAX for a particle far
+                    // out or a tiny thickness, and its neighbour then wraps (the hash wraps
+                    // anyway; candidates are checked by distance below).
+                    let h = hash.hash(ci.wrapping_add(IVec3::new(dx, dy, dz))) as usize;
+                    let (a, b) = (hash.start[h] as usize, hash.start[h + 1] as usize);
+                    for &j in &hash.entries[a..b] {
+                        let ju = j as usize;
+                        if ju <= i
+                            || particles.inv_mass[i] + particles.inv_mass[ju] == 0.0
+                            || xi.distance_squared(particles.position[ju]) >= r2
+                        {
+                            continue;
                         }
+                        pairs.push((i as u32, j, value(i, ju)));
                     }
                 }
             }
-            // Canonical order, and no duplicates from cells sharing a hash bucket.
-            self.pairs[first..].sort_unstable_by_key(|p| p.1);
-            let mut w = first;
-            for r in first..self.pairs.len() {
-                if w == first || self.pairs[w - 1].1 != self.pairs[r].1 {
-                    self.pairs[w] = self.pairs[r];
-                    w += 1;
-                }
-            }
-            self.pairs.truncate(w);
         }
+        // Canonical order, and no duplicates from cells sharing a hash bucket.
+        pairs[first..].sort_unstable_by_key(|p| p.1);
+        let mut w = first;
+        for r in first..pairs.len() {
+            if w == first || pairs[w - 1].1 != pairs[r].1 {
+                pairs.swap(w, r);
+                w += 1;
+            }
+        }
+        pairs.truncate(w);
+    }
+}
+
+/// The cloth's layer contacts of the current state, appended to `out` as contacts of both
+/// particles: every pair closer than `reach` that was at least `reach` apart in the rest
+/// shape (layers touching, not neighbours), pairs of two pinned particles left out. Found
+/// with a hash built for the call (not the solver's cached pair list, which covers only the
+/// pairs within the thickness, and only as of the last step).
+pub(crate) fn layer_contacts(
+    particles: &Particles,
+    rest: &[Vec3],
+    reach: f32,
+    out: &mut Vec<crate::sim::Contact>,
+) {
+    use crate::sim::{Contact, ContactWith};
+    let mut hash = SpatialHash::default();
+    hash.build(&particles.position, reach);
+    let mut pairs = Vec::new();
+    collect_pairs(&hash, particles, reach, &mut pairs, |_, _| ());
+    for (i, j, ()) in pairs {
+        let (iu, ju) = (i as usize, j as usize);
+        let d = particles.position[iu] - particles.position[ju];
+        let len = d.length();
+        if rest[iu].distance(rest[ju]) < reach || len == 0.0 {
+            continue;
+        }
+        let n = d / len;
+        out.push(Contact {
+            particle: i,
+            normal: n,
+            with: ContactWith::Cloth(j),
+        });
+        out.push(Contact {
+            particle: j,
+            normal: -n,
+            with: ContactWith::Cloth(i),
+        });
     }
 }
 

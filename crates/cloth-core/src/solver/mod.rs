@@ -227,18 +227,6 @@ impl Solver {
         false
     }
 
-    /// Self-contact pairs closer than `reach` (and than their rest distance) among the
-    /// candidate pairs of the last self-collision pass, appended to `out`.
-    pub fn self_contacts(
-        &self,
-        position: &[Vec3],
-        rest: &[Vec3],
-        reach: f32,
-        out: &mut Vec<crate::sim::Contact>,
-    ) {
-        self.hash.contacts(position, rest, reach, out);
-    }
-
     /// The total force on every particle at the current state, into the scratch, and
     /// returned.
     pub fn forces(
