@@ -157,6 +157,11 @@ pub enum OrientationDesc {
     Vertical,
 }
 
+impl OrientationDesc {
+    /// Every orientation (the names a scene file takes).
+    pub const ALL: [Self; 2] = [Self::Horizontal, Self::Vertical];
+}
+
 /// `[cloth.pins]`.
 #[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -183,6 +188,16 @@ pub enum CornerDesc {
     BottomRight,
 }
 
+impl CornerDesc {
+    /// Every corner (the names a scene file takes).
+    pub const ALL: [Self; 4] = [
+        Self::TopLeft,
+        Self::TopRight,
+        Self::BottomLeft,
+        Self::BottomRight,
+    ];
+}
+
 /// A grid edge.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -192,6 +207,11 @@ pub enum EdgeDesc {
     Bottom,
     Left,
     Right,
+}
+
+impl EdgeDesc {
+    /// Every edge (the names a scene file takes).
+    pub const ALL: [Self; 4] = [Self::Top, Self::Bottom, Self::Left, Self::Right];
 }
 
 /// `{ stiffness, damping }` of one spring kind.
@@ -464,6 +484,17 @@ pub enum ColliderKind {
     Capsule,
     Box,
     Mesh,
+}
+
+impl ColliderKind {
+    /// Every shape kind (the names a scene file takes).
+    pub const ALL: [Self; 5] = [
+        Self::Sphere,
+        Self::Plane,
+        Self::Capsule,
+        Self::Box,
+        Self::Mesh,
+    ];
 }
 
 impl ClothDesc {
@@ -1765,19 +1796,36 @@ fn de_error(source: &str, file: &str, e: &toml::de::Error) -> ClothError {
     // An enum given a number or an array: name what it takes.
     if message.contains("wanted string or table") {
         let names = if key.ends_with("orientation") {
-            "\"horizontal\" or \"vertical\""
+            quoted_names(&OrientationDesc::ALL)
         } else if key.ends_with(".type") {
-            "\"sphere\", \"plane\", \"capsule\", \"box\" or \"mesh\""
+            quoted_names(&ColliderKind::ALL)
         } else if key.ends_with("corners") {
-            "\"top-left\", \"top-right\", \"bottom-left\" or \"bottom-right\""
+            quoted_names(&CornerDesc::ALL)
         } else if key.ends_with("edges") {
-            "\"top\", \"bottom\", \"left\" or \"right\""
+            quoted_names(&EdgeDesc::ALL)
         } else {
-            "a name in quotes (docs/scenes.md lists them)"
+            "a name in quotes (docs/scenes.md lists them)".to_owned()
         };
         message = format!("expected {names}");
     }
     scene_error(file, pos, &key, message)
+}
+
+/// The names scene files use for `all` (as serde writes them), quoted and joined:
+/// `"a", "b" or "c"`.
+fn quoted_names<T: Serialize>(all: &[T]) -> String {
+    let names: Vec<String> = all
+        .iter()
+        .map(|v| match toml::Value::try_from(v) {
+            Ok(toml::Value::String(name)) => format!("\"{name}\""),
+            _ => unreachable!("a unit variant serialises to its name"),
+        })
+        .collect();
+    match names.split_last() {
+        Some((last, [])) => last.clone(),
+        Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
+        None => String::new(),
+    }
 }
 
 /// serde's type names in `message` in words (`expected f32` → `expected a number`).

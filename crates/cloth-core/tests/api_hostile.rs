@@ -511,3 +511,84 @@ fn a_mesh_error_from_an_override_names_the_override() {
         other => panic!("expected a scene error, got {other:?}"),
     }
 }
+
+/// A scene's enum-valued key given a number is told every name it takes, and only those: the
+/// hint's names are each accepted at that key, and there is one per variant (the exhaustive
+/// matches below stop compiling when a variant is added).
+#[test]
+fn enum_hints_list_exactly_the_names_each_key_takes() {
+    use cloth_core::scene::{ColliderKind, CornerDesc, EdgeDesc, OrientationDesc};
+    let orientation = |o: OrientationDesc| match o {
+        OrientationDesc::Horizontal | OrientationDesc::Vertical => (),
+    };
+    let corner = |c: CornerDesc| match c {
+        CornerDesc::TopLeft
+        | CornerDesc::TopRight
+        | CornerDesc::BottomLeft
+        | CornerDesc::BottomRight => (),
+    };
+    let edge = |e: EdgeDesc| match e {
+        EdgeDesc::Top | EdgeDesc::Bottom | EdgeDesc::Left | EdgeDesc::Right => (),
+    };
+    let kind = |k: ColliderKind| match k {
+        ColliderKind::Sphere
+        | ColliderKind::Plane
+        | ColliderKind::Capsule
+        | ColliderKind::Box
+        | ColliderKind::Mesh => (),
+    };
+    OrientationDesc::ALL.into_iter().for_each(orientation);
+    CornerDesc::ALL.into_iter().for_each(corner);
+    EdgeDesc::ALL.into_iter().for_each(edge);
+    ColliderKind::ALL.into_iter().for_each(kind);
+
+    let base = "[cloth]\nresolution = [8, 8]\n";
+    // (scene with NAME where the name goes, its key, variants)
+    let cases = [
+        (
+            format!("{base}orientation = NAME\n"),
+            "cloth.orientation",
+            OrientationDesc::ALL.len(),
+        ),
+        (
+            format!("{base}[cloth.pins]\ncorners = [NAME]\n"),
+            "cloth.pins.corners",
+            CornerDesc::ALL.len(),
+        ),
+        (
+            format!("{base}[cloth.pins]\nedges = [NAME]\n"),
+            "cloth.pins.edges",
+            EdgeDesc::ALL.len(),
+        ),
+        (
+            format!("{base}[[colliders]]\ntype = NAME\n"),
+            "colliders[0].type",
+            ColliderKind::ALL.len(),
+        ),
+    ];
+    for (template, key, variants) in cases {
+        let message = match Scene::from_toml(&template.replace("NAME", "1"), "t.toml") {
+            Err(ClothError::Scene {
+                key: k, message, ..
+            }) => {
+                assert!(k.starts_with(key), "{k} for {key}");
+                message
+            }
+            other => panic!("{key}: expected a scene error, got {other:?}"),
+        };
+        let mut names: Vec<&str> = message.split('"').skip(1).step_by(2).collect();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), variants, "{key}: {message}");
+        for name in names {
+            let text = template.replace("NAME", &format!("\"{name}\""));
+            if let Err(ClothError::Scene {
+                key: k, message, ..
+            }) = Scene::from_toml(&text, "t.toml")
+            {
+                // A collider of a valid type may still miss its fields; the type was read.
+                assert!(!k.ends_with(".type"), "{key} = {name:?} refused: {message}");
+            }
+        }
+    }
+}
