@@ -1138,3 +1138,147 @@ fn xpbd_velocity_from_f32_positions_keeps_the_drag_law() {
         "XPBD's speed {measured} vs the drag law's {v}"
     );
 }
+
+// ---------------------------------------------------------------------------------------
+// 7. The hanging chain
+// ---------------------------------------------------------------------------------------
+
+/// The equilibrium of a chain of n point masses m joined by n − 1 Hooke links (rest length
+/// `l0`, stiffness `k`) hung from two pins a horizontal `span` apart at the same height: every
+/// link carries the same horizontal tension H, and the vertical tension changes by m·g at
+/// every free node, so link j (from node j to node j + 1) carries T_j = (H, −V + j·m·g) with
+/// V = (n − 2)·m·g/2 by symmetry, has length l0 + |T_j|/k and points along T_j. H is the root
+/// of Σ_j (l0 + |T_j|/k)·H/|T_j| = span (increasing in H), found by bisection in f64. Returns
+/// every node's position relative to the left pin (x along the span, y up).
+fn elastic_chain(n: usize, m: f64, k: f64, l0: f64, span: f64) -> Vec<(f64, f64)> {
+    let w = m * f64::from(G);
+    let v = (n - 2) as f64 * w / 2.0;
+    let link = |h: f64, j: usize| {
+        let ty = -v + j as f64 * w;
+        let t = h.hypot(ty);
+        let len = l0 + t / k;
+        (len * h / t, len * ty / t)
+    };
+    let reach = |h: f64| (0..n - 1).map(|j| link(h, j).0).sum::<f64>();
+    let (mut lo, mut hi) = (1e-9, 1e6);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if reach(mid) < span {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let h = 0.5 * (lo + hi);
+    let mut at = (0.0, 0.0);
+    let mut nodes = vec![at];
+    for j in 0..n - 1 {
+        let (dx, dy) = link(h, j);
+        at = (at.0 + dx, at.1 + dy);
+        nodes.push(at);
+    }
+    nodes
+}
+
+/// The hanging chain's equilibrium shape (the discrete elastic catenary, [`elastic_chain`]):
+/// a 2 × 21 grid with only its weft springs (k = 1000 N/m, 5 cm rest length, dashpots
+/// 0.05 N·s/m) is two independent chains of 21 particles of 10 g; both ends of each are pinned
+/// and the right pins moved in to a span of 0.8 m (the chain is 1 m long: a 28 cm sag, links
+/// stretched by up to ~1 mm), the free particles started on a straight line between them.
+/// Global damping 0.02 kg/s brings it to rest; after 12 s (kinetic energy < 10⁻⁹ J, the
+/// f32 floor is ~4·10⁻¹¹ J: rms speeds of 10⁻⁵ m/s) every
+/// node is where the force balance puts it, for symplectic Euler and implicit Euler
+/// (XPBD's one sweep per substep reaches Hooke's law only as its iterations converge, see
+/// `solvers.rs` and `xpbd_chains.rs`).
+///
+/// Tolerances: symplectic Euler 10⁻⁶ m (at rest the residual force on a node is what f32
+/// rounding of the spring forces leaves, ~10⁻⁷ of the 1 N tensions; measured 1.9·10⁻⁷ m);
+/// implicit Euler 2·10⁻⁵ m: its CG stops at 10⁻³ of one substep's gravity impulse, so a
+/// residual force of up to 10⁻³·m·g ≈ 10⁻⁴ N per node can stand, which the chain's sideways
+/// stiffness (tension over link length, ≈ 20 N/m) turns into ~5·10⁻⁶ m per node, adding up
+/// along the chain's sway (measured 6.8·10⁻⁶ m). The shape is the discrete elastic chain's:
+/// the same chain with the links' stretch left out is 1.3 cm off, and a weight or stiffness
+/// off by 1 % moves the nodes by ~10⁻⁴ m (1 % of the stretch's effect).
+#[test]
+fn hanging_chain_takes_the_discrete_catenary() {
+    let (n, m, k, l0) = (21_usize, 0.01_f32, 1000.0_f32, 0.05_f32);
+    let span = 0.8_f32;
+    let expected = elastic_chain(
+        n,
+        f64::from(m),
+        f64::from(k),
+        f64::from(l0),
+        f64::from(span),
+    );
+    let inextensible = elastic_chain(n, f64::from(m), 1e12, f64::from(l0), f64::from(span));
+    let stretch_effect = expected
+        .iter()
+        .zip(&inextensible)
+        .map(|(a, b)| (a.0 - b.0).hypot(a.1 - b.1))
+        .fold(0.0, f64::max);
+    eprintln!(
+        "sag {:.5} m; the links' stretch moves the nodes by up to {stretch_effect:.2e} m",
+        -expected[n / 2].1
+    );
+    for integrator in [Integrator::SymplecticEuler, Integrator::ImplicitEuler] {
+        let cloth = GridBuilder::new(2, n)
+            .spacing(l0, l0)
+            .orientation(cloth_core::Orientation::Vertical)
+            .mass(Mass::PerParticle(m))
+            .pin_indices([0, n as u32 - 1, n as u32, 2 * n as u32 - 1])
+            .build()
+            .unwrap();
+        let config = SimConfig {
+            integrator,
+            damping: 0.02,
+            material: Material {
+                warp: OFF,
+                weft: SpringParams::new(k, 0.05),
+                shear: OFF,
+                bend: OFF,
+            },
+            forces: ForceSwitches {
+                air: false,
+                ..ForceSwitches::default()
+            },
+            ..SimConfig::default()
+        };
+        let mut sim = Simulation::new(cloth, config).unwrap();
+        let mut rows = Vec::new();
+        for row in 0..2 {
+            let left = sim.particles().position[row * n];
+            let right = left + Vec3::new(span, 0.0, 0.0);
+            for i in 0..n {
+                let x = left.lerp(right, i as f32 / (n - 1) as f32);
+                sim.set_position(row * n + i, x).unwrap();
+            }
+            rows.push(left);
+        }
+        for _ in 0..720 {
+            sim.step().unwrap();
+        }
+        let ke = sim.stats().kinetic_energy;
+        let mut worst: f64 = 0.0;
+        for (row, left) in rows.iter().enumerate() {
+            for (i, &(ex, ey)) in expected.iter().enumerate() {
+                let d = sim.particles().position[row * n + i].as_dvec3() - left.as_dvec3();
+                worst = worst.max((d.x - ex).hypot(d.y - ey)).max(d.z.abs());
+            }
+        }
+        eprintln!(
+            "{:>16}: KE {ke:.1e} J, worst node off the elastic catenary {worst:.2e} m",
+            integrator.name()
+        );
+        assert!(ke < 1e-9, "{}: not at rest: {ke} J", integrator.name());
+        let tolerance = if integrator == Integrator::ImplicitEuler {
+            2e-5
+        } else {
+            1e-6
+        };
+        assert!(
+            worst <= tolerance,
+            "{}: a node is {worst} m off the chain's equilibrium",
+            integrator.name()
+        );
+    }
+}
