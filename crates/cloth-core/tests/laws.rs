@@ -1282,3 +1282,62 @@ fn hanging_chain_takes_the_discrete_catenary() {
         );
     }
 }
+/// Known defect, ignored (the same cause as
+/// [`xpbd_velocity_from_f32_positions_keeps_the_drag_law`]): the laws do not depend on where
+/// the cloth is, but XPBD's f32 velocity (x − x_prev)/h does. `solvers.rs`'s hanging strip
+/// (`xpbd_extension_matches_compliance`: two chains of 10 particles of 10 g on 20 N/m warp
+/// springs, pinned at the top, 10 s) settles to Hooke's extension m·g·N(N − 1)/(2k) within
+/// 0.07 % at 20 substeps per 1/60 s when its top is 0.45 m from the origin; the same strip
+/// 5 m higher ends 0.39 % short, and at 80 substeps 1.1 % short at 0.45 m (still moving:
+/// 8·10⁻⁶ J) and 11.7 % long at 5.45 m (0.12 J: it never comes to rest). The law: the
+/// extension within 0.5 % of Hooke's at both heights and both substep counts.
+#[test]
+#[ignore = "XPBD's v = (x − x_prev)/h in f32 depends on the height; see the doc comment"]
+fn xpbd_hanging_strip_extension_does_not_depend_on_height() {
+    let rows = 10;
+    let (m, k) = (0.01_f32, 20.0_f32);
+    let expected = m * G * (rows * (rows - 1)) as f32 / (2.0 * k);
+    for height in [0.0_f32, 5.0] {
+        for substeps in [20, 80] {
+            let cloth = GridBuilder::new(rows, 2)
+                .spacing(0.1, 0.1)
+                .origin(Vec3::new(0.0, height, 0.0))
+                .orientation(cloth_core::Orientation::Vertical)
+                .mass(Mass::PerParticle(m))
+                .pin_edge(cloth_core::Edge::Top)
+                .build()
+                .unwrap();
+            let config = SimConfig {
+                integrator: Integrator::Xpbd,
+                substeps,
+                gravity: Vec3::new(0.0, -G, 0.0),
+                damping: 0.02,
+                material: Material {
+                    warp: SpringParams::new(k, 0.0),
+                    weft: OFF,
+                    shear: OFF,
+                    bend: OFF,
+                },
+                ..SimConfig::default()
+            };
+            let mut sim = Simulation::new(cloth, config).unwrap();
+            let top = sim.particles().position[0].y;
+            for _ in 0..600 {
+                sim.step().unwrap();
+            }
+            let bottom = sim.particles().position[(rows - 1) * 2].y;
+            let extension = (top - bottom) - 0.1 * (rows - 1) as f32;
+            let err = extension / expected - 1.0;
+            eprintln!(
+                "height {height} m, {substeps} substeps: extension off Hooke's by {:+.3} %, \
+                 KE {:.1e} J",
+                100.0 * err,
+                sim.stats().kinetic_energy
+            );
+            assert!(
+                err.abs() < 0.005,
+                "height {height} m, {substeps} substeps: extension off Hooke's by {err}"
+            );
+        }
+    }
+}
