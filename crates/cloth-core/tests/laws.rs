@@ -1351,12 +1351,15 @@ fn xpbd_hanging_strip_extension_does_not_depend_on_height() {
 /// on positions): a small cloth (3×3, 0.1 m, 10 g per particle) thrown down at 1 m/s from
 /// 2 cm above the contact surface of each shape — a plane, a box's top face, a mesh box's, the
 /// top of a capsule and of a sphere of radius 5 m — lands without bouncing. Frictionless, no
-/// air or damping. From the step after it lands to 0.2 s: every particle within 10⁻⁵ m of
-/// the contact surface (1 cm above the shape; f32 rounding of distances 5 m from the curved
-/// shapes' centres is ~5·10⁻⁷ m) and its normal speed below one substep's gravity kick g·h
-/// (5·10⁻³ m/s at 32 substeps per 1/60 s; a restitution of only 1 % would leave 10⁻² m/s and
-/// lift the cloth 5 µm, past the position tolerance), for symplectic Euler, implicit Euler
-/// and XPBD. Before the fix in `implicit::constrain`, implicit Euler treated a particle within
+/// air or damping; one substep of 1/1920 s per step, so that every substep is checked. From
+/// the substep after it lands to 0.2 s: every particle within 10⁻⁵ m of the contact surface
+/// (1 cm above the shape; f32 rounding of distances 5 m from the curved shapes' centres is
+/// ~5·10⁻⁷ m) and its normal speed below half a substep's gravity kick, ½g·h = 2.6·10⁻³ m/s
+/// (exactly zero on the flat shapes for the force-based integrators; on the curved ones the
+/// cloth slides slowly off the top and its velocity follows the previous substep's tangent:
+/// measured ≤ 1.4·10⁻³ m/s, XPBD on the sphere). A restitution of 1 % leaves 6.7·10⁻³ m/s
+/// after the landing (checked by mutation); the bounce dies out within a few substeps, which
+/// is why every substep is checked. For symplectic Euler, implicit Euler and XPBD. Before the fix in `implicit::constrain`, implicit Euler treated a particle within
 /// its slack band (0.1·thickness + 10⁻⁵ m + g·h²) above the contact surface as touching and
 /// held its normal velocity at the collider's: this cloth stopped 0.71 mm above its contact
 /// surface and stayed there, at rest, under gravity.
@@ -1405,6 +1408,8 @@ fn contact_is_inelastic_on_every_shape() {
                 .unwrap();
             let stiff = SpringParams::new(1000.0, 0.1);
             let mut config = SimConfig {
+                dt: 1.0 / 1920.0,
+                substeps: 1,
                 integrator,
                 damping: 0.0,
                 material: Material::isotropic(stiff, stiff, stiff),
@@ -1420,7 +1425,7 @@ fn contact_is_inelastic_on_every_shape() {
             sim.add_collider(collider.clone()).unwrap();
             let mut landed = false;
             let (mut worst_gap, mut worst_vn) = (0.0_f32, 0.0_f32);
-            for _ in 0..12 {
+            for _ in 0..384 {
                 let touching = sim.step().unwrap().contacts > 0;
                 if landed {
                     let p = sim.particles();
@@ -1434,9 +1439,9 @@ fn contact_is_inelastic_on_every_shape() {
             }
             eprintln!(
                 "{name:>8} {:>16}: after landing, worst gap {worst_gap:.1e} m, worst normal \
-                 speed {worst_vn:.1e} m/s (g·h = {:.1e})",
+                 speed {worst_vn:.1e} m/s (½g·h = {:.1e})",
                 integrator.name(),
-                G * h
+                0.5 * G * h
             );
             assert!(landed, "{name} {}: never landed", integrator.name());
             assert!(
@@ -1445,7 +1450,7 @@ fn contact_is_inelastic_on_every_shape() {
                 integrator.name()
             );
             assert!(
-                worst_vn <= G * h,
+                worst_vn <= 0.5 * G * h,
                 "{name} {}: normal speed {worst_vn} m/s after landing",
                 integrator.name()
             );
