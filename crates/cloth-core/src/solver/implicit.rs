@@ -12,9 +12,8 @@
 //! - The system is solved matrix-free by the filtered ("modified") preconditioned conjugate
 //!   gradient of the paper (§5.3) with a block-Jacobi preconditioner. Pinned particles are
 //!   fully constrained (their Δv is zero: they keep the prescribed velocity); a particle
-//!   touching a collider at the start of the substep (within a slack band above its contact
-//!   surface) has its normal velocity constrained to the collider's, less the speed that
-//!   closes its gap to the surface within the substep. Neither enters as a penalty spring.
+//!   touching a collider at the start of the substep has its normal velocity constrained to
+//!   the collider's. Neither enters as a penalty spring.
 //! - Coulomb friction is decided before the solve and enforced in it (`constrain`): from the
 //!   particle's own row, the contact's normal impulse e and the tangential load ℓ that would
 //!   stop it; a contact with |ℓ| ≤ μ_s·e sticks (all three directions fixed at the collider's
@@ -662,8 +661,7 @@ fn assemble(
 ///
 /// - Pinned: fixed.
 /// - Touching a collider at rest (see the substep's stage 2): its normal velocity
-///   constrained to the collider's less gap/h, the speed that closes its gap to the contact
-///   surface within the substep (v_n below counts it as approach). With friction, the contact's normal impulse over the
+///   constrained to the collider's. With friction, the contact's normal impulse over the
 ///   substep is estimated from the particle's own row of the system, uncoupled from its
 ///   neighbours: e = max(0, −m̃·v_n − b·n), with m̃ = m + h·d the row's mass and v_n the
 ///   relative normal velocity (the impulse that holds the normal velocity against the
@@ -699,32 +697,24 @@ fn constrain(
     for col in colliders {
         let (dist, nrm) = col.shape.distance_within(x, col.contact_range());
         let slack = 0.1 * col.thickness + 1e-5 + g_h * h;
-        let gap = dist - col.thickness;
-        if gap < slack {
+        if dist - col.thickness < slack {
             let v_rel = v - col.velocity_at(x);
             let vn = v_rel.dot(nrm);
             if vn <= g_h {
-                // A particle in the slack band above the contact surface approaches it at the
-                // speed that closes the gap within the substep, instead of keeping the
-                // collider's normal velocity: a contact acts at the surface, not across the
-                // band (it held a resting cloth up to 0.1·thickness above its surface). A
-                // constraint that must pull it down to do so is released ([`release`]).
-                let vn = vn + gap.max(0.0) / h;
                 let fr = col.friction;
                 if fr.static_coefficient > 0.0 || fr.kinetic_coefficient > 0.0 {
                     let bn = b.dot(nrm);
                     let e = (-mass * vn - bn).max(0.0);
-                    let load = mass * (v_rel - v_rel.dot(nrm) * nrm) + (*b - bn * nrm);
+                    let load = mass * (v_rel - vn * nrm) + (*b - bn * nrm);
                     let load_len = load.length();
                     if load_len <= fr.static_coefficient * e {
-                        return (Filter::Stuck(nrm), -v_rel - (vn - v_rel.dot(nrm)) * nrm);
+                        return (Filter::Stuck(nrm), -v_rel);
                     }
                     // load_len > μ_s·e ≥ 0 here.
                     *friction = (fr.kinetic_coefficient * e / load_len) * load;
                     *b -= *friction;
                 }
-                // Δv·n = −v_rel·n − gap/h: the new normal velocity is the collider's, less
-                // the closing speed.
+                // Δv·n = −v_rel·n: the new normal velocity equals the collider's.
                 return (Filter::Normal(nrm), -vn * nrm);
             }
         }
