@@ -55,7 +55,8 @@ Examples:
 Viewer controls: left-drag on the cloth grabs it, elsewhere orbits; right/middle-drag pans;
 wheel zooms; Ctrl/Shift-click pins or unpins; Space pause, N single step, R reset,
 C orbit/fly camera (fly: WASD, Q/E down/up, Shift faster, right-drag looks), W wireframe,
-K contacts, Home reset view, Esc quit.
+K contacts, Home reset view, Tab hide/show the panel, Esc quit (after taking --screenshot). On
+quitting, the viewer prints one line of its state to standard error.
 
 Without a GPU, rendering needs Mesa's software renderer and, for the window, a display (or
 `xvfb-run -a cloth view`).
@@ -115,8 +116,8 @@ enum Command {
         /// Initial window size.
         #[arg(long, value_name = "WxH", default_value = "1280x800", value_parser = parse_size)]
         size: [u32; 2],
-        /// Save the last frame, panel included, to this PNG (needs --frames; the name ends in
-        /// .png and its folder must exist).
+        /// Save the last frame, panel included, to this PNG: frame N of --frames (needed), or the
+        /// frame Esc quits at if earlier (the name ends in .png and its folder must exist).
         #[arg(long, value_name = "FILE", requires = "frames", value_parser = parse_png)]
         screenshot: Option<PathBuf>,
     },

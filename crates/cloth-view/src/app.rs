@@ -58,6 +58,9 @@ pub fn run(options: ViewOptions) -> anyhow::Result<()> {
     }
     let mut app = App::new(options, world);
     event_loop.run_app(&mut app)?;
+    if app.gfx.is_some() {
+        eprintln!("cloth view: {}", app.summary());
+    }
     match app.fatal {
         Some(e) => Err(e),
         None => Ok(()),
@@ -241,7 +244,25 @@ struct App {
     last_frame: Instant,
     fps: f32,
     frames: u64,
+    /// Esc was pressed, at this frame count, with a screenshot to take: quit after the next
+    /// drawn frame.
+    quit_at: Option<u64>,
+    /// The screenshot was written.
+    shot_taken: bool,
+    /// Particles grabbed with the mouse so far.
+    grabs: u64,
     fatal: Option<anyhow::Error>,
+}
+
+/// Frames drawn past the one a screenshot was due at before giving up on it (a window whose
+/// surface gives no texture to draw into).
+const SCREENSHOT_RETRIES: u64 = 120;
+
+/// Whether the viewer takes `key` before egui sees it: Tab shows and hides the panel, which egui
+/// would otherwise use to move its keyboard focus through the panel's widgets (focusing the
+/// "pause" button and so taking every later key: Space, R, W, K… did nothing).
+fn viewer_key_first(key: PhysicalKey) -> bool {
+    key == PhysicalKey::Code(KeyCode::Tab)
 }
 
 impl App {
@@ -265,6 +286,9 @@ impl App {
             last_frame: Instant::now(),
             fps: 0.0,
             frames: 0,
+            quit_at: None,
+            shot_taken: false,
+            grabs: 0,
             fatal: None,
         }
     }
@@ -315,6 +339,49 @@ impl App {
             egui_state,
             egui_renderer,
         })
+    }
+
+    /// The state at exit, one line: frames drawn, simulated time, pause, camera, panel and
+    /// display toggles, pins and the last message (for scripted runs and the input tests).
+    fn summary(&self) -> String {
+        let sim = &self.world.sim;
+        let pinned = (0..sim.particles().len())
+            .filter(|&i| sim.particles().is_pinned(i))
+            .count();
+        let on = |b: bool| if b { "on" } else { "off" };
+        let mut line = format!(
+            "{} frames, {} at t = {:.3} s{}, {} particles, {} (resolution {}), camera {} at \
+             {:.3} m from its target (eye {:.3}), panel {}, wireframe {}, contacts {}, {pinned} \
+             pinned, {} grabs, window {}x{}",
+            self.frames,
+            self.world.scene,
+            sim.time(),
+            if self.world.paused { " (paused)" } else { "" },
+            sim.particles().len(),
+            self.world.integrator.name(),
+            self.world.resolution,
+            match self.mode {
+                CameraMode::Orbit => "orbit",
+                CameraMode::Fly => "fly",
+            },
+            self.camera.distance(),
+            self.camera.eye,
+            if self.panel.visible {
+                "shown"
+            } else {
+                "hidden"
+            },
+            on(self.render.wireframe),
+            on(self.render.contacts),
+            self.grabs,
+            self.window_size()[0],
+            self.window_size()[1],
+        );
+        if let Some(m) = &self.world.message {
+            line.push_str("; ");
+            line.push_str(m);
+        }
+        line
     }
 
     fn grab_target(&self) -> Option<(usize, Vec3)> {
@@ -375,6 +442,7 @@ impl App {
             }
             (CameraMode::Orbit, MouseButton::Left) => match self.pick() {
                 Some((index, _)) => {
+                    self.grabs += 1;
                     let was_pinned = self.world.sim.particles().is_pinned(index);
                     let _ = self.world.sim.pin(index);
                     let p = self.world.sim.particles().position[index];
@@ -468,7 +536,10 @@ impl App {
             }
             KeyCode::KeyK => self.render.contacts = !self.render.contacts,
             KeyCode::Home => self.apply(Action::ResetView),
-            KeyCode::Tab => self.panel.visible = !self.panel.visible,
+            KeyCode::Escape if self.options.screenshot.is_some() && !self.shot_taken => {
+                // the screenshot is of the last frame: draw one more
+                self.quit_at.get_or_insert(self.frames);
+            }
             KeyCode::Escape => event_loop.exit(),
             _ => {}
         }
@@ -607,9 +678,24 @@ impl App {
         self.gfx = Some(gfx);
 
         self.frames += 1;
-        if self.options.frames.is_some_and(|n| self.frames >= n) {
+        let due = self.quit_at.is_some() || self.options.frames.is_some_and(|n| self.frames >= n);
+        if due && (self.options.screenshot.is_none() || self.shot_taken) {
+            event_loop.exit();
+        } else if due && self.frames >= self.shot_deadline() {
+            self.fatal = Some(anyhow!(
+                "no screenshot: the window gave no frame to draw into for {SCREENSHOT_RETRIES} \
+                 frames"
+            ));
             event_loop.exit();
         }
+    }
+
+    /// The frame count past which a screenshot still not taken is given up.
+    fn shot_deadline(&self) -> u64 {
+        let due_at = self.quit_at.into_iter().chain(self.options.frames).min();
+        due_at
+            .unwrap_or(self.frames)
+            .saturating_add(SCREENSHOT_RETRIES)
     }
 
     fn draw(&mut self, gfx: &mut Gfx) {
@@ -633,7 +719,9 @@ impl App {
 
         let [w, h] = gfx.targets.size;
         let capture_due = self.options.screenshot.is_some()
-            && self.options.frames.is_some_and(|n| self.frames + 1 >= n);
+            && !self.shot_taken
+            && (self.quit_at.is_some()
+                || self.options.frames.is_some_and(|n| self.frames + 1 >= n));
         let capture = capture_due.then(|| {
             let texture = gfx.gpu.device.create_texture(&wgpu::TextureDescriptor {
                 label: Some("screenshot"),
@@ -715,8 +803,9 @@ impl App {
             }
             queue.submit(extra.into_iter().chain([encoder.finish()]));
             if let (Some((texture, _)), Some(path)) = (&capture, &self.options.screenshot) {
-                if let Err(e) = save_screenshot(&gfx.gpu, texture, path) {
-                    self.fatal = Some(e);
+                match save_screenshot(&gfx.gpu, texture, path) {
+                    Ok(()) => self.shot_taken = true,
+                    Err(e) => self.fatal = Some(e),
                 }
             } else {
                 gfx.window.pre_present_notify();
@@ -781,21 +870,41 @@ impl ApplicationHandler for App {
         let Some(gfx) = self.gfx.as_mut() else {
             return;
         };
+        if let WindowEvent::KeyboardInput { event: key, .. } = &event
+            && viewer_key_first(key.physical_key)
+        {
+            if key.state == ElementState::Pressed && !key.repeat {
+                self.panel.visible = !self.panel.visible;
+                if !self.panel.visible {
+                    // the scene takes the whole window now, also for a click before the next
+                    // frame is drawn
+                    self.projection.shift_x = 0.0;
+                }
+                // a widget of the hidden panel keeps no keyboard focus
+                gfx.egui_ctx.memory_mut(|m| {
+                    if let Some(id) = m.focused() {
+                        m.surrender_focus(id);
+                    }
+                });
+            }
+            return;
+        }
         let response = gfx.egui_state.on_window_event(&gfx.window, &event);
         let egui_pointer = gfx.egui_ctx.egui_wants_pointer_input();
         let egui_keys = gfx.egui_ctx.egui_wants_keyboard_input();
         match event {
             WindowEvent::CloseRequested => event_loop.exit(),
             WindowEvent::Resized(size) => {
-                gfx.surface.resize(&gfx.gpu, size.width, size.height);
-                if size.width > 0 && size.height > 0 {
+                // the size drawn at: a side past the device's limit is clamped
+                let drawn = gfx.surface.resize(&gfx.gpu, size.width, size.height);
+                if size.width > 0 && size.height > 0 && drawn != gfx.targets.size {
                     gfx.targets = Targets::new(
                         &gfx.gpu.device,
                         gfx.surface.config.format,
-                        [size.width, size.height],
+                        drawn,
                         gfx.renderer.samples(),
                     );
-                    self.projection.resize(size.width, size.height);
+                    self.projection.resize(drawn[0], drawn[1]);
                 }
                 gfx.window.request_redraw();
             }
@@ -899,6 +1008,27 @@ mod tests {
         assert_eq!(super::step_ms(first, 3.0, 0), first);
         let next = super::step_ms(first, 60.0, 3);
         assert!((next - (0.9 * 10.0 + 0.1 * 20.0)).abs() < 1e-6, "{next}");
+    }
+
+    /// Tab showed and hid the panel only when egui did not want it, and egui takes Tab to move
+    /// its keyboard focus: Tab focused the panel's "pause" button instead, and every later key
+    /// (Space, R, W, K…) went to egui. The viewer now takes Tab before egui sees it (the Xvfb
+    /// test `tests/view_input.rs` drives this with real key events).
+    #[test]
+    fn tab_goes_to_the_viewer_before_egui() {
+        use winit::keyboard::{KeyCode, PhysicalKey};
+        assert!(super::viewer_key_first(PhysicalKey::Code(KeyCode::Tab)));
+        for other in [
+            KeyCode::Space,
+            KeyCode::KeyW,
+            KeyCode::Escape,
+            KeyCode::KeyA,
+        ] {
+            assert!(
+                !super::viewer_key_first(PhysicalKey::Code(other)),
+                "{other:?}"
+            );
+        }
     }
 
     /// Reset keeps the running configuration; one the rebuilt cloth refuses (here a

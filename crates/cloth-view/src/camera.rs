@@ -340,9 +340,9 @@ pub struct FlyKeys {
     pub left: bool,
     /// Right (D).
     pub right: bool,
-    /// Up (E or Space).
+    /// Up (E or Page Up).
     pub up: bool,
-    /// Down (Q).
+    /// Down (Q or Page Down).
     pub down: bool,
     /// Faster (Shift).
     pub fast: bool,

@@ -139,6 +139,34 @@ pub struct WindowSurface {
     pub surface: wgpu::Surface<'static>,
     /// Its configuration (size, format, present mode).
     pub config: wgpu::SurfaceConfiguration,
+    /// The longest side the device can draw (`max_texture_dimension_2d`): a larger window is
+    /// drawn at most this large.
+    max_side: u32,
+    /// The last texture was suboptimal: configure again before taking the next one.
+    stale: bool,
+}
+
+/// Most pixels a window is drawn at (4096 × 4096): its multisampled colour and depth targets
+/// take 32 bytes a pixel at 4× MSAA, half a GiB at this size.
+pub const MAX_PIXELS: u64 = 4096 * 4096;
+
+/// The surface size for a `width × height` window on a device whose textures are at most
+/// `max_side` pixels a side: each side clamped to `1 ..= max_side`, then both scaled down
+/// alike to at most [`MAX_PIXELS`]. A window can be made larger than any texture (e.g. 20000 ×
+/// 20000 pixels on X11): configuring a surface that large is a validation error and allocating
+/// its targets runs out of memory, both of which wgpu raises as panics. Such a window shows the
+/// smaller image stretched or cropped, as the platform presents it.
+#[must_use]
+pub fn surface_size(width: u32, height: u32, max_side: u32) -> [u32; 2] {
+    let max_side = max_side.max(1);
+    let [w, h] = [width.clamp(1, max_side), height.clamp(1, max_side)];
+    let pixels = u64::from(w) * u64::from(h);
+    if pixels <= MAX_PIXELS {
+        return [w, h];
+    }
+    let scale = (MAX_PIXELS as f64 / pixels as f64).sqrt();
+    let side = |s: u32| ((f64::from(s) * scale).floor() as u32).max(1);
+    [side(w), side(h)]
 }
 
 /// What [`WindowSurface::acquire`] got.
@@ -161,8 +189,10 @@ impl WindowSurface {
         width: u32,
         height: u32,
     ) -> Result<Self, GpuError> {
+        let max_side = gpu.device.limits().max_texture_dimension_2d;
+        let [width, height] = surface_size(width, height, max_side);
         let mut config = surface
-            .get_default_config(&gpu.adapter, width.max(1), height.max(1))
+            .get_default_config(&gpu.adapter, width, height)
             .ok_or_else(|| GpuError::Surface("the adapter cannot present to it".into()))?;
         let caps = surface.get_capabilities(&gpu.adapter);
         if let Some(srgb) = caps
@@ -175,26 +205,37 @@ impl WindowSurface {
         }
         config.present_mode = wgpu::PresentMode::AutoVsync;
         surface.configure(&gpu.device, &config);
-        Ok(Self { surface, config })
+        Ok(Self {
+            surface,
+            config,
+            max_side,
+            stale: false,
+        })
     }
 
-    /// Follows a window resize; a zero side (minimised) keeps the old configuration.
-    pub fn resize(&mut self, gpu: &Gpu, width: u32, height: u32) {
-        if width == 0 || height == 0 {
-            return;
+    /// Follows a window resize; a zero side (minimised) keeps the old configuration, a side
+    /// longer than the device can draw is clamped ([`surface_size`]). Returns the size drawn
+    /// at, `[config.width, config.height]`.
+    pub fn resize(&mut self, gpu: &Gpu, width: u32, height: u32) -> [u32; 2] {
+        if width > 0 && height > 0 {
+            [self.config.width, self.config.height] = surface_size(width, height, self.max_side);
+            self.surface.configure(&gpu.device, &self.config);
+            self.stale = false;
         }
-        self.config.width = width;
-        self.config.height = height;
-        self.surface.configure(&gpu.device, &self.config);
+        [self.config.width, self.config.height]
     }
 
     /// The next texture to draw into; reconfigures the surface when it is lost or outdated.
     pub fn acquire(&mut self, gpu: &Gpu) -> Frame {
+        if std::mem::take(&mut self.stale) {
+            self.surface.configure(&gpu.device, &self.config);
+        }
         match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t) => Frame::Ready(t),
             wgpu::CurrentSurfaceTexture::Suboptimal(t) => {
-                // draw this one, reconfigure for the next
-                self.surface.configure(&gpu.device, &self.config);
+                // Draw this one and reconfigure before the next: configuring while `t` is
+                // alive is a validation error (a panic), which a resize could trigger.
+                self.stale = true;
                 Frame::Ready(t)
             }
             wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
@@ -203,5 +244,43 @@ impl WindowSurface {
             }
             _ => Frame::Skip,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{MAX_PIXELS, surface_size};
+
+    /// A window resized to 20000 × 20000 pixels (xdotool windowsize under Xvfb) panicked in
+    /// `Surface::configure` (larger than the 16384-pixel texture limit), and clamped to that
+    /// limit it panicked allocating 8 GiB of multisampled targets. The size drawn at keeps
+    /// within both, keeps the aspect when it scales, and leaves ordinary sizes alone.
+    #[test]
+    fn a_huge_window_is_drawn_at_a_size_the_device_can_hold() {
+        assert_eq!(surface_size(640, 400, 16384), [640, 400]);
+        assert_eq!(surface_size(1, 1, 16384), [1, 1]);
+        assert_eq!(surface_size(0, 7, 16384), [1, 7]);
+        assert_eq!(surface_size(4096, 4096, 16384), [4096, 4096]);
+        for (w, h) in [
+            (20000, 20000),
+            (32767, 1),
+            (16384, 16384),
+            (8192, 8192),
+            (30000, 500),
+        ] {
+            let [sw, sh] = surface_size(w, h, 16384);
+            assert!(sw <= 16384 && sh <= 16384, "{w}x{h} -> {sw}x{sh}");
+            assert!(
+                u64::from(sw) * u64::from(sh) <= MAX_PIXELS,
+                "{w}x{h} -> {sw}x{sh}"
+            );
+            assert!(sw >= 1 && sh >= 1);
+        }
+        let [sw, sh] = surface_size(8000, 4000, 16384);
+        assert!(
+            (f64::from(sw) / f64::from(sh) - 2.0).abs() < 1e-3,
+            "{sw}x{sh}"
+        );
+        assert_eq!(surface_size(5000, 100, 2048), [2048, 100]);
     }
 }
