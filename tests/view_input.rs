@@ -1,0 +1,510 @@
+//! The window app driven by real input: `cloth view` runs in its own Xvfb display and
+//! `xdotool` sends it X events through XTEST, as a user's keyboard and mouse would: every
+//! documented key, clicks and drags (orbit, pan, grab, Ctrl-click pin), the wheel, window
+//! resizes down to 1 × 1 and past what the device can draw, unmapping and mapping the window,
+//! and keys pressed hundreds of times. The viewer quits on Esc, which takes its `--screenshot`
+//! first, and prints a one-line summary of its state on standard error; the tests read that
+//! line and the screenshot.
+//!
+//! Needs `Xvfb` (apt package `xvfb`), `xdotool` and a graphics adapter (Mesa's software
+//! renderer will do). Outside CI a missing tool skips loudly; in CI (`CI=true`) it fails.
+//!
+//! No fixed sleeps: every wait polls for what it waits for (the X server, the window,
+//! its focus, the viewer's exit) under a deadline, and X delivers the events of one client in
+//! order, so the viewer handles every event sent before the Esc that ends it.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::time::{Duration, Instant};
+
+fn in_ci() -> bool {
+    std::env::var("CI").is_ok_and(|v| !v.is_empty() && v != "false" && v != "0")
+}
+
+/// How long one viewer run may take before it counts as hung.
+const RUN_DEADLINE: Duration = Duration::from_secs(90);
+
+/// Whether `tool` is on the PATH; outside CI a missing tool skips the test (loudly).
+fn have(tool: &str, package: &str) -> bool {
+    let found = Command::new("sh")
+        .args(["-c", &format!("command -v {tool}")])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !found {
+        assert!(
+            !in_ci(),
+            "CI=true but {tool} is missing: apt-get install {package}"
+        );
+        eprintln!("\n!!!!! SKIPPED: {tool} not found, the viewer's input is NOT tested\n");
+    }
+    found
+}
+
+/// A private X server, killed when dropped.
+struct Xvfb {
+    child: Child,
+    display: String,
+}
+
+/// Where the next display number search starts, past the numbers other tests take.
+static NEXT_DISPLAY: AtomicU32 = AtomicU32::new(0);
+
+impl Xvfb {
+    /// Starts `Xvfb` on a free display and waits (polling) until it takes connections. The
+    /// number is chosen here, not with `-displayfd`: Xvfb writes no lock file then, and two
+    /// servers starting at once could both try the same display, the loser leaving the winner
+    /// unreachable ("Failed to open connection to X server", seen here). With a number given,
+    /// Xvfb takes the display's lock file or exits, and the lock file names the server's pid.
+    fn start() -> Self {
+        let base = 300 + std::process::id() % 200;
+        let mut why = String::new();
+        for _ in 0..20 {
+            let n = base + NEXT_DISPLAY.fetch_add(1, Ordering::Relaxed) * 3;
+            let taken = Path::new(&format!("/tmp/.X{n}-lock")).exists()
+                || Path::new(&format!("/tmp/.X11-unix/X{n}")).exists();
+            if taken {
+                continue;
+            }
+            match Self::try_start(n) {
+                Ok(x) => return x,
+                Err(e) => why = e,
+            }
+        }
+        panic!("no usable Xvfb: {why}");
+    }
+
+    fn try_start(n: u32) -> Result<Self, String> {
+        let child = Command::new("Xvfb")
+            .arg(format!(":{n}"))
+            // -noreset: the server resets when its last client leaves (the run without input
+            // quitting), and a client connecting meanwhile is refused
+            .args([
+                "-screen",
+                "0",
+                "1280x800x24",
+                "-nolisten",
+                "tcp",
+                "-noreset",
+            ])
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start Xvfb");
+        let mut x = Self {
+            child,
+            display: format!(":{n}"),
+        };
+        let start = Instant::now();
+        loop {
+            if let Ok(Some(status)) = x.child.try_wait() {
+                return Err(format!("Xvfb :{n} exited ({status})"));
+            }
+            // ours: the display's lock file holds our server's pid
+            let lock = std::fs::read_to_string(format!("/tmp/.X{n}-lock")).unwrap_or_default();
+            let ours = lock.trim() == x.child.id().to_string();
+            if ours && x.xdotool(&["getdisplaygeometry"]).status.success() {
+                return Ok(x);
+            }
+            if start.elapsed() > Duration::from_secs(20) {
+                return Err(format!("Xvfb :{n} took no connection in 20 s"));
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Runs `xdotool ARGS` on this display.
+    fn xdotool(&self, args: &[&str]) -> Output {
+        Command::new("xdotool")
+            .args(args)
+            .env("DISPLAY", &self.display)
+            .output()
+            .expect("run xdotool")
+    }
+
+    /// Runs `xdotool ARGS` and fails the test if it fails.
+    fn xdo(&self, args: &[&str]) {
+        let out = self.xdotool(args);
+        assert!(
+            out.status.success(),
+            "xdotool {args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        // SIGTERM first: Xvfb then removes its socket and lock file
+        let pid = self.child.id().to_string();
+        let _ = Command::new("kill").args(["-TERM", &pid]).status();
+        for _ in 0..100 {
+            if let Ok(Some(_)) = self.child.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A running `cloth view`, its standard error going to a file.
+struct Viewer {
+    child: Child,
+    stderr: PathBuf,
+    window: String,
+}
+
+impl Viewer {
+    /// Starts `cloth view SCENE --resolution 16 --size 640x400` with a screenshot at `shot`
+    /// (taken when Esc quits it; the frame count is only a backstop), waits for its window
+    /// and gives it the keyboard focus.
+    fn start(x: &Xvfb, dir: &Path, scene: &str, shot: &Path) -> Self {
+        let xdg = dir.join("xdg");
+        std::fs::create_dir_all(&xdg).expect("xdg dir");
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&xdg, std::fs::Permissions::from_mode(0o700))
+                .expect("chmod xdg dir");
+        }
+        let stderr = dir.join(format!("{scene}-{}.stderr", shot_name(shot)));
+        let child = Command::new(env!("CARGO_BIN_EXE_cloth"))
+            .args(["view", scene, "--resolution", "16", "--size", "640x400"])
+            .args(["--frames", "1000000", "--screenshot"])
+            .arg(shot)
+            .env("DISPLAY", &x.display)
+            .env("XDG_RUNTIME_DIR", &xdg)
+            .env_remove("WAYLAND_DISPLAY")
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(&stderr).expect("stderr file"))
+            .spawn()
+            .expect("start cloth view");
+        let mut viewer = Self {
+            child,
+            stderr,
+            window: String::new(),
+        };
+        viewer.window = viewer.poll("its window", || {
+            let out = x.xdotool(&["search", "--onlyvisible", "--name", "^cloth"]);
+            let id = String::from_utf8_lossy(&out.stdout).trim().to_string();
+            (out.status.success() && !id.is_empty()).then_some(id)
+        });
+        viewer.focus(x);
+        viewer
+    }
+
+    /// Polls `ready` until it gives a value, failing if the viewer exits or the deadline passes.
+    fn poll<T>(&mut self, what: &str, mut ready: impl FnMut() -> Option<T>) -> T {
+        let start = Instant::now();
+        loop {
+            if let Some(v) = ready() {
+                return v;
+            }
+            if let Ok(Some(status)) = self.child.try_wait() {
+                panic!(
+                    "cloth view exited ({status}) waiting for {what}: {}",
+                    self.log()
+                );
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(30),
+                "no {what} after 30 s: {}",
+                self.log()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Gives the window the keyboard focus (there is no window manager to do it) and waits
+    /// until the server says it has it.
+    fn focus(&mut self, x: &Xvfb) {
+        let window = self.window.clone();
+        self.poll("the keyboard focus", || {
+            let _ = x.xdotool(&["windowfocus", &window]);
+            let out = x.xdotool(&["getwindowfocus"]);
+            (String::from_utf8_lossy(&out.stdout).trim() == window).then_some(())
+        });
+    }
+
+    fn log(&self) -> String {
+        std::fs::read_to_string(&self.stderr).unwrap_or_default()
+    }
+
+    /// Presses Esc and waits for the exit: returns the standard error after checking the
+    /// status is 0 and nothing panicked.
+    fn quit(mut self, x: &Xvfb) -> String {
+        x.xdo(&["key", "Escape"]);
+        let start = Instant::now();
+        let status = loop {
+            if let Some(status) = self.child.try_wait().expect("wait for cloth view") {
+                break status;
+            }
+            if start.elapsed() > RUN_DEADLINE {
+                let _ = self.child.kill();
+                let _ = self.child.wait();
+                panic!("cloth view hung: no exit after Esc: {}", self.log());
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        let log = self.log();
+        assert!(!log.contains("panicked"), "{log}");
+        assert_eq!(status.code(), Some(0), "stderr: {log}");
+        log
+    }
+}
+
+fn shot_name(shot: &Path) -> String {
+    shot.file_stem()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned())
+}
+
+/// The exit summary: `cloth view: N frames, SCENE at t = ...`.
+fn summary(log: &str) -> &str {
+    log.lines()
+        .rev()
+        .find(|l| l.starts_with("cloth view: ") && l.contains(" frames, "))
+        .unwrap_or_else(|| panic!("no exit summary in: {log}"))
+}
+
+/// The number after `key` in `line` (up to the next space, comma or bracket).
+fn number_after(line: &str, key: &str) -> f32 {
+    let rest = &line[line
+        .find(key)
+        .unwrap_or_else(|| panic!("{key:?} in {line}"))
+        + key.len()..];
+    let end = rest.find([' ', ',', ']']).unwrap_or(rest.len());
+    rest[..end]
+        .parse()
+        .unwrap_or_else(|e| panic!("{key:?} in {line}: {e}"))
+}
+
+/// The eye position `[x, y, z]` in a summary.
+fn eye(line: &str) -> [f32; 3] {
+    let rest = &line[line.find("(eye [").expect("eye") + "(eye [".len()..];
+    let inside = &rest[..rest.find(']').expect("]")];
+    let v: Vec<f32> = inside
+        .split(',')
+        .map(|s| s.trim().parse().expect("eye coordinate"))
+        .collect();
+    [v[0], v[1], v[2]]
+}
+
+fn read_png(path: &Path) -> image::RgbaImage {
+    image::open(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .to_rgba8()
+}
+
+/// Whether the tools are there (skipping loudly outside CI when not).
+fn tools() -> bool {
+    have("Xvfb", "xvfb") && have("xdotool", "xdotool")
+}
+
+/// Every documented control of the drape, against a run without input.
+#[test]
+fn keys_mouse_wheel_and_resizes_change_what_the_viewer_shows() {
+    if !tools() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let x = Xvfb::start();
+    let started = Instant::now();
+
+    // without input: Esc at once
+    let plain_png = dir.path().join("plain.png");
+    let plain_log = Viewer::start(&x, dir.path(), "drape", &plain_png).quit(&x);
+    let plain = summary(&plain_log).to_string();
+    assert!(
+        plain.contains("panel shown, wireframe off, contacts off, 0 pinned, 0 grabs"),
+        "{plain}"
+    );
+
+    let input_png = dir.path().join("input.png");
+    let mut v = Viewer::start(&x, dir.path(), "drape", &input_png);
+    let w = v.window.clone();
+    // Tab hides the panel (egui took Tab to focus its "pause" button, and with it every
+    // later key); Space pauses; R resets (t = 0) and N steps once while paused
+    x.xdo(&["key", "--delay", "5", "Tab", "space", "r", "n", "Home"]);
+    // Ctrl-click on the cloth pins the particle under the cursor (the drape starts high, at
+    // the top of the start view's image; the panel is hidden)
+    x.xdo(&["mousemove", "--window", &w, "320", "35"]);
+    x.xdo(&["keydown", "ctrl", "click", "1", "keyup", "ctrl"]);
+    // a grab of the cloth: drag a particle (moved at once while paused) and let it go
+    x.xdo(&["mousemove", "--window", &w, "330", "38", "mousedown", "1"]);
+    for (px, py) in [("340", "45"), ("360", "60"), ("380", "80")] {
+        x.xdo(&["mousemove", "--window", &w, px, py]);
+    }
+    x.xdo(&["mouseup", "1"]);
+    // orbit: a drag from the ground (only the cloth is picked); pan: a right drag; zoom in
+    // three wheel lines
+    x.xdo(&["mousemove", "--window", &w, "20", "390", "mousedown", "1"]);
+    for (px, py) in [("60", "370"), ("120", "340"), ("160", "320")] {
+        x.xdo(&["mousemove", "--window", &w, px, py]);
+    }
+    x.xdo(&["mouseup", "1"]);
+    x.xdo(&["mousemove", "--window", &w, "600", "380", "mousedown", "3"]);
+    x.xdo(&["mousemove", "--window", &w, "590", "370", "mouseup", "3"]);
+    x.xdo(&["click", "--repeat", "3", "4"]);
+    // overlays: wireframe, contacts
+    x.xdo(&["key", "--delay", "5", "w", "k"]);
+    // the fly camera and its keys (W there moves, it does not toggle the wireframe), back to
+    // orbit
+    x.xdo(&[
+        "key", "--delay", "5", "c", "w", "a", "s", "d", "q", "e", "Prior", "Next",
+    ]);
+    x.xdo(&["key", "--delay", "5", "shift+w", "c"]);
+    // resizes: 1 × 1, larger than the device can draw, and back; unmapped and mapped again
+    for (sw, sh) in [("1", "1"), ("20000", "20000"), ("2000", "1500"), ("1", "1")] {
+        x.xdo(&["windowsize", &w, sw, sh]);
+    }
+    x.xdo(&["windowsize", &w, "640", "400"]);
+    x.xdo(&["windowunmap", "--sync", &w]);
+    x.xdo(&["windowmap", "--sync", &w]);
+    v.focus(&x);
+    let log = v.quit(&x);
+    let after = summary(&log);
+    eprintln!("without input: {plain}\nwith input:    {after}");
+
+    assert!(after.contains("(paused)"), "Space: {after}");
+    let t = number_after(after, "at t = ");
+    assert!(
+        t > 0.0 && t < 0.05,
+        "R then N: one step from t = 0, {after}"
+    );
+    assert!(after.contains("panel hidden"), "Tab: {after}");
+    assert!(after.contains("wireframe on"), "W: {after}");
+    assert!(after.contains("contacts on"), "K: {after}");
+    assert!(after.contains("camera orbit"), "C twice: {after}");
+    assert!(after.contains("1 pinned"), "Ctrl-click: {after}");
+    assert!(
+        after.contains("1 grabs"),
+        "a drag on the cloth grabs: {after}"
+    );
+    assert!(after.contains("window 640x400"), "resized back: {after}");
+    let (d0, d1) = (
+        number_after(&plain, "orbit at "),
+        number_after(after, "orbit at "),
+    );
+    // Three wheel lines zoom in by 0.9³; under XTEST each click also comes as an emulated
+    // scroll-valuator motion, which winit (0.30) reports as a second wheel event, so 0.9⁶
+    // (a real wheel under Xorg's libinput sends the valuators and flags the buttons as
+    // emulated, which winit skips: one event a notch). Orbit, pan and fly keep the distance.
+    assert!(
+        [3, 6]
+            .iter()
+            .any(|&k| (d1 - d0 * 0.9f32.powi(k)).abs() < 0.01 * d0),
+        "three wheel lines zoom by 0.9³ (or 0.9⁶): {d0} -> {d1}"
+    );
+    let (e0, e1) = (eye(&plain), eye(after));
+    assert!(
+        (e0[1] - e1[1]).abs() > 0.05 && (e0[0] - e1[0]).abs() > 0.05,
+        "the orbit drag moved the eye: {e0:?} -> {e1:?}"
+    );
+
+    let (a, b) = (read_png(&plain_png), read_png(&input_png));
+    assert_eq!(a.dimensions(), (640, 400));
+    assert_eq!(b.dimensions(), (640, 400));
+    // the panel's left part: its dark grey without input, the scene with the panel hidden
+    let differing = a
+        .pixels()
+        .zip(b.pixels())
+        .filter(|(p, q)| p.0.iter().zip(q.0).any(|(&u, v)| u.abs_diff(v) > 24))
+        .count();
+    assert!(
+        differing > 640 * 400 / 4,
+        "only {differing} pixels differ from the run without input"
+    );
+    eprintln!("input test: {:.1} s", started.elapsed().as_secs_f32());
+}
+
+/// Hostile use: keys pressed hundreds of times, drags while pausing and resetting, the
+/// contacts overlay on the self-colliding pile, resizes and unmapping in a loop.
+#[test]
+fn hostile_input_never_panics_hangs_or_shows_nan() {
+    if !tools() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let x = Xvfb::start();
+    let started = Instant::now();
+    let png = dir.path().join("hostile.png");
+    let mut v = Viewer::start(&x, dir.path(), "pile", &png);
+    let w = v.window.clone();
+    x.xdo(&["key", "Tab", "k"]);
+    // drags on the cloth and off it while pausing, stepping and resetting
+    for _ in 0..5 {
+        // the start view, the pile back at its start: a ribbon hanging through (345, 120)
+        x.xdo(&["key", "--delay", "0", "Home", "r"]);
+        x.xdo(&["mousemove", "--window", &w, "345", "120", "mousedown", "1"]);
+        x.xdo(&["key", "--delay", "0", "space", "n", "r"]);
+        x.xdo(&["mousemove", "--window", &w, "400", "100"]);
+        x.xdo(&["key", "--delay", "0", "space", "r", "n"]);
+        x.xdo(&["mousemove", "--window", &w, "1200", "780", "mouseup", "1"]);
+        x.xdo(&["mousemove", "--window", &w, "300", "250"]);
+        x.xdo(&[
+            "keydown", "ctrl", "click", "--delay", "1", "--repeat", "3", "1", "keyup", "ctrl",
+        ]);
+        x.xdo(&[
+            "mousedown",
+            "3",
+            "mousemove",
+            "--window",
+            &w,
+            "100",
+            "100",
+            "mouseup",
+            "3",
+        ]);
+        x.xdo(&[
+            "click", "--delay", "1", "--repeat", "20", "4", "click", "--delay", "1", "--repeat",
+            "40", "5",
+        ]);
+    }
+    // a drag held through resizes to 1 × 1 and back, and through unmapping
+    x.xdo(&["mousemove", "--window", &w, "320", "220", "mousedown", "1"]);
+    for (sw, sh) in [
+        ("1", "1"),
+        ("640", "400"),
+        ("3", "2000"),
+        ("2000", "3"),
+        ("640", "400"),
+    ] {
+        x.xdo(&["windowsize", &w, sw, sh]);
+        x.xdo(&["mousemove", "--window", &w, "500", "300"]);
+    }
+    for _ in 0..3 {
+        x.xdo(&["windowunmap", "--sync", &w]);
+        x.xdo(&["windowmap", "--sync", &w]);
+    }
+    x.xdo(&["mouseup", "1"]);
+    v.focus(&x);
+    // every key of both camera modes, 100 times each (1800 presses) as fast as X takes them,
+    // with a drag of the cloth held through them (X may drop some of a flood this fast, so
+    // nothing here counts on how many toggles arrive)
+    x.xdo(&["key", "--delay", "0", "Home", "r"]);
+    x.xdo(&["mousemove", "--window", &w, "345", "120", "mousedown", "1"]);
+    x.xdo(&[
+        "key", "--delay", "0", "--repeat", "100", "r", "n", "space", "k", "c", "w", "a", "s", "d",
+        "q", "e", "Prior", "Next", "Home", "Tab", "shift+w",
+    ]);
+    x.xdo(&["mousemove", "--window", &w, "100", "300", "mouseup", "1"]);
+    x.xdo(&["key", "--delay", "0", "k"]);
+    let log = v.quit(&x);
+    let after = summary(&log);
+    eprintln!("{after}");
+    let lower = after.to_lowercase();
+    assert!(!lower.contains("nan") && !lower.contains("inf"), "{after}");
+    assert!(number_after(after, "at t = ").is_finite(), "{after}");
+    assert!(after.contains("window 640x400"), "{after}");
+    assert!(
+        number_after(after, "pinned, ") >= 1.0,
+        "no drag grabbed the pile: {after}"
+    );
+    let shot = read_png(&png);
+    assert_eq!(shot.dimensions(), (640, 400));
+    eprintln!("hostile test: {:.1} s", started.elapsed().as_secs_f32());
+}
