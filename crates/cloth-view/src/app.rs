@@ -258,6 +258,15 @@ struct App {
 /// surface gives no texture to draw into).
 const SCREENSHOT_RETRIES: u64 = 120;
 
+/// The pixel a grab follows for the cursor at `pos` in a `size` window: `pos` kept inside the
+/// window. During a drag X reports the cursor outside the window too, and a window shrunk under
+/// a held drag (to 1 × 1) put the cursor hundreds of window widths off its edge: the ray through
+/// that pixel met the drag plane thousands of metres away, a paused drag moved the particle
+/// there, and every later step failed with NaN positions until a reset.
+fn grab_pixel(pos: Vec2, size: [u32; 2]) -> Vec2 {
+    pos.clamp(Vec2::ZERO, Vec2::new(size[0] as f32, size[1] as f32))
+}
+
 /// Whether the viewer takes `key` before egui sees it: Tab shows and hides the panel, which egui
 /// would otherwise use to move its keyboard focus through the panel's widgets (focusing the
 /// "pause" button and so taking every later key: Space, R, W, K… did nothing).
@@ -483,7 +492,9 @@ impl App {
                 was_pinned,
                 ..
             } => {
-                let ray = self.camera.ray_through(&self.projection, size, pos);
+                let ray = self
+                    .camera
+                    .ray_through(&self.projection, size, grab_pixel(pos, size));
                 let normal = self.camera.forward();
                 if let Some(t) = ray.hit_plane(plane, normal) {
                     let target = ray.at(t);
@@ -1028,6 +1039,29 @@ mod tests {
                 !super::viewer_key_first(PhysicalKey::Code(other)),
                 "{other:?}"
             );
+        }
+    }
+
+    /// A grab follows the cursor only within the window: a cursor 300 px off a 1 × 1 window
+    /// put the grabbed particle kilometres away (and the steps after it at NaN).
+    #[test]
+    fn a_grab_follows_the_cursor_within_the_window() {
+        use cloth_core::glam::{Vec2, Vec3};
+        let size = [1, 1];
+        assert_eq!(super::grab_pixel(Vec2::new(300.0, 300.0), size), Vec2::ONE);
+        assert_eq!(
+            super::grab_pixel(Vec2::new(-5.0, 0.5), size),
+            Vec2::new(0.0, 0.5)
+        );
+        let inside = Vec2::new(320.0, 35.0);
+        assert_eq!(super::grab_pixel(inside, [640, 400]), inside);
+        // the drag plane is met near the grabbed point for every pixel the grab can follow
+        let (camera, fovy) = (crate::Camera::looking_at(Vec3::ZERO, 2.0), crate::FOVY);
+        let projection = crate::Projection::new(1, 1, fovy);
+        for pos in [Vec2::new(300.0, 300.0), Vec2::new(-4000.0, 9000.0)] {
+            let ray = camera.ray_through(&projection, size, super::grab_pixel(pos, size));
+            let t = ray.hit_plane(Vec3::ZERO, camera.forward()).expect("hit");
+            assert!(ray.at(t).length() < 2.0, "{pos} -> {}", ray.at(t));
         }
     }
 
