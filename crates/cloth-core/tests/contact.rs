@@ -1,6 +1,9 @@
 //! Contact and statics tests: force balance at the pins, the sphere scene without
 //! penetration, Coulomb friction on an incline, and a moving collider.
 
+mod common;
+use common::stiff_patch;
+
 use cloth_core::diagnostics::explicit_stability_limit;
 use cloth_core::glam::{Quat, Vec3};
 use cloth_core::{
@@ -253,22 +256,11 @@ const THETA: f32 = std::f32::consts::PI / 6.0; // 30°, tan θ ≈ 0.577
 fn incline(integrator: Integrator, friction: Friction) -> Simulation {
     let q = Quat::from_rotation_z(THETA);
     let normal = q * Vec3::Y;
-    let cloth = GridBuilder::new(3, 3)
-        .size(0.1, 0.1)
-        .rotation(q)
-        .origin(normal * THICKNESS)
-        .mass(Mass::PerParticle(0.01))
-        .build()
-        .unwrap();
-    let stiff = SpringParams::new(1000.0, 0.1);
-    let mut config = SimConfig {
+    let config = SimConfig {
         integrator,
-        damping: 0.0,
-        material: Material::isotropic(stiff, stiff, stiff),
         ..SimConfig::default()
     };
-    config.forces.air = false;
-    let mut sim = Simulation::new(cloth, config).unwrap();
+    let mut sim = stiff_patch(q, normal * THICKNESS, Vec3::ZERO, config);
     sim.add_collider(
         Collider::plane(Vec3::ZERO, normal)
             .with_thickness(THICKNESS)

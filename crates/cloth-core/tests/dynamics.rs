@@ -8,16 +8,16 @@
 //!
 //! Run with `--nocapture` to see the measured numbers.
 
+mod common;
+use common::*;
+
 use std::f64::consts::TAU;
 
-use cloth_core::glam::{DVec3, Vec3};
+use cloth_core::glam::Vec3;
 use cloth_core::{
-    Air, ForceSwitches, GridBuilder, Integrator, Mass, Material, SimConfig, Simulation,
-    SpringClass, SpringKind, SpringParams, StepStats,
+    ForceSwitches, GridBuilder, Integrator, Mass, Material, SimConfig, Simulation, SpringClass,
+    SpringKind, SpringParams, StepStats,
 };
-
-/// f32 unit roundoff, 2⁻²⁴.
-const EPS32: f64 = 1.0 / 16_777_216.0;
 
 /// The three explicit integrators, named one by one: the laws below are theirs, and
 /// `Integrator` is `#[non_exhaustive]`, so `Integrator::ALL` may grow to solvers these exact
@@ -27,19 +27,6 @@ const EXPLICIT: [Integrator; 3] = [
     Integrator::SymplecticEuler,
     Integrator::Verlet,
 ];
-
-const OFF: SpringParams = SpringParams::new(0.0, 0.0);
-
-/// Every force term off except springs and dashpots.
-fn internal_forces_only() -> ForceSwitches {
-    ForceSwitches {
-        gravity: false,
-        springs: true,
-        dashpots: true,
-        damping: false,
-        air: false,
-    }
-}
 
 /// A two-particle oscillator: a 2×2 grid, 1 m × 1 m, with only weft springs (stiffness `k`,
 /// dashpot `c`); particle 0 has mass `m_a`, particle 1 mass `m_b`, and particle 1 is moved
@@ -85,12 +72,6 @@ fn oscillator(
     sim
 }
 
-/// Extension |L| − L0 of the spring 0–1 (L0 = 1 m), in f64.
-fn extension(sim: &Simulation) -> f64 {
-    let p = &sim.particles().position;
-    (p[1].as_dvec3() - p[0].as_dvec3()).length() - 1.0
-}
-
 /// Kinetic + elastic energy from a step's diagnostics, J.
 fn mech_energy(s: &StepStats) -> f64 {
     s.kinetic_energy + s.spring_energy
@@ -117,24 +98,6 @@ fn energy_now(sim: &Simulation) -> f64 {
         }
     }
     kinetic + elastic
-}
-
-/// Period from the zero crossings of a sampled signal (sample n at time n·h), each located by
-/// linear interpolation; successive crossings are half a period apart. Returns the period and
-/// the number of crossings used.
-fn zero_crossing_period(signal: &[f64], h: f64) -> (f64, usize) {
-    let crossings: Vec<f64> = signal
-        .windows(2)
-        .enumerate()
-        .filter(|(_, w)| (w[0] > 0.0) != (w[1] > 0.0))
-        .map(|(n, w)| (n as f64 + w[0] / (w[0] - w[1])) * h)
-        .collect();
-    assert!(
-        crossings.len() >= 3,
-        "too few zero crossings: {crossings:?}"
-    );
-    let span = crossings[crossings.len() - 1] - crossings[0];
-    (2.0 * span / (crossings.len() - 1) as f64, crossings.len())
 }
 
 /// Period of the sampled linear oscillator produced by symplectic Euler and by position
@@ -478,52 +441,9 @@ fn free_fall_follows_each_integrators_exact_discretisation() {
     }
 }
 
-/// Centre of mass in f64.
-fn com(sim: &Simulation) -> DVec3 {
-    let p = sim.particles();
-    let total: f64 = p.mass.iter().map(|&m| f64::from(m)).sum();
-    p.mass
-        .iter()
-        .zip(&p.position)
-        .map(|(&m, x)| f64::from(m) * x.as_dvec3())
-        .sum::<DVec3>()
-        / total
-}
-
-/// Largest |(|L| − L0)/L0| over all springs (compression included).
-fn abs_strain(sim: &Simulation) -> f64 {
-    let p = &sim.particles().position;
-    sim.topology()
-        .springs()
-        .iter()
-        .map(|s| {
-            let len = (p[s.b as usize].as_dvec3() - p[s.a as usize].as_dvec3()).length();
-            ((len - f64::from(s.rest_length)) / f64::from(s.rest_length)).abs()
-        })
-        .fold(0.0, f64::max)
-}
-
 // ---------------------------------------------------------------------------------------
 // 4. Momentum conservation
 // ---------------------------------------------------------------------------------------
-
-/// A tiny deterministic generator (64-bit LCG, Knuth's constants).
-struct Lcg(u64);
-
-impl Lcg {
-    /// Uniform in [−1, 1).
-    fn next_signed(&mut self) -> f32 {
-        self.0 = self
-            .0
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        (self.0 >> 40) as f32 / (1_u32 << 23) as f32 - 1.0
-    }
-
-    fn next_vec(&mut self) -> Vec3 {
-        Vec3::new(self.next_signed(), self.next_signed(), self.next_signed())
-    }
-}
 
 /// Newton's third law makes the springs and dashpots internal forces: with no gravity,
 /// global damping, air or colliders, total momentum Σmv is conserved exactly. An 8×8 cloth
@@ -617,22 +537,10 @@ fn internal_forces_conserve_momentum() {
 #[test]
 fn flat_cloth_reaches_drag_terminal_velocity() {
     let total_mass = 0.24_f32;
-    let (rho, cd) = (1.2_f32, 1.0_f32);
     for integrator in EXPLICIT {
         for start_factor in [0.0_f32, 3.0] {
-            let mut cloth = GridBuilder::new(3, 3).size(1.0, 1.0).build().unwrap();
+            let cloth = flat_air_cloth(total_mass);
             let tris = cloth.topology.triangles().to_vec();
-            let mut count = vec![0_u32; cloth.particles.len()];
-            for t in &tris {
-                for &i in t {
-                    count[i as usize] += 1;
-                }
-            }
-            let unit = total_mass / (3 * tris.len()) as f32;
-            for (i, &c) in count.iter().enumerate() {
-                cloth.particles.mass[i] = unit * c as f32;
-                cloth.particles.inv_mass[i] = 1.0 / (unit * c as f32);
-            }
             let area: f64 = tris
                 .iter()
                 .map(|t| {
@@ -640,27 +548,8 @@ fn flat_cloth_reaches_drag_terminal_velocity() {
                     0.5 * (x(1) - x(0)).cross(x(2) - x(0)).length()
                 })
                 .sum();
-            let config = SimConfig {
-                dt: 1.0 / 60.0,
-                substeps: 16,
-                integrator,
-                material: Material::isotropic(
-                    SpringParams::new(40.0, 0.1),
-                    SpringParams::new(10.0, 0.1),
-                    SpringParams::new(2.0, 0.1),
-                ),
-                air: Air {
-                    density: rho,
-                    drag_coefficient: cd,
-                    lift_coefficient: 0.0,
-                    ..Air::default()
-                },
-                forces: ForceSwitches {
-                    damping: false,
-                    ..ForceSwitches::default()
-                },
-                ..SimConfig::default()
-            };
+            let config = air_config(integrator, 16, Vec3::ZERO, true);
+            let (rho, cd) = (config.air.density, config.air.drag_coefficient);
             let g = -f64::from(config.gravity.y);
             let m = f64::from(cloth.particles.total_mass());
             let vt = (2.0 * m * g / (f64::from(rho) * f64::from(cd) * area)).sqrt();

@@ -7,41 +7,16 @@
 //!
 //! Run with `--nocapture` to see the measured numbers.
 
+mod common;
+use common::*;
+
 use std::f64::consts::TAU;
 
 use cloth_core::glam::{DVec3, Quat, Vec3};
 use cloth_core::{
-    Air, Collider, ForceSwitches, Friction, GridBuilder, Integrator, Mass, Material, SimConfig,
+    Collider, ForceSwitches, Friction, GridBuilder, Integrator, Mass, Material, SimConfig,
     Simulation, SpringKind, SpringParams,
 };
-
-/// f32 unit roundoff, 2⁻²⁴.
-const EPS32: f64 = 1.0 / 16_777_216.0;
-
-const OFF: SpringParams = SpringParams::new(0.0, 0.0);
-
-/// Every force term off except springs and dashpots.
-fn internal_forces_only() -> ForceSwitches {
-    ForceSwitches {
-        gravity: false,
-        springs: true,
-        dashpots: true,
-        damping: false,
-        air: false,
-    }
-}
-
-/// Centre of mass in f64.
-fn com(sim: &Simulation) -> DVec3 {
-    let p = sim.particles();
-    let total: f64 = p.mass.iter().map(|&m| f64::from(m)).sum();
-    p.mass
-        .iter()
-        .zip(&p.position)
-        .map(|(&m, x)| f64::from(m) * x.as_dvec3())
-        .sum::<DVec3>()
-        / total
-}
 
 /// Total momentum Σm·v in f64.
 fn momentum(sim: &Simulation) -> DVec3 {
@@ -62,37 +37,6 @@ fn angular_momentum(sim: &Simulation) -> DVec3 {
         .zip(&p.velocity)
         .map(|((&m, x), v)| f64::from(m) * x.as_dvec3().cross(v.as_dvec3()))
         .sum()
-}
-
-/// Largest |(|L| − L0)/L0| over all springs.
-fn abs_strain(sim: &Simulation) -> f64 {
-    let p = &sim.particles().position;
-    sim.topology()
-        .springs()
-        .iter()
-        .map(|s| {
-            let len = (p[s.b as usize].as_dvec3() - p[s.a as usize].as_dvec3()).length();
-            ((len - f64::from(s.rest_length)) / f64::from(s.rest_length)).abs()
-        })
-        .fold(0.0, f64::max)
-}
-
-/// A tiny deterministic generator (64-bit LCG, Knuth's constants).
-struct Lcg(u64);
-
-impl Lcg {
-    /// Uniform in [−1, 1).
-    fn next_signed(&mut self) -> f32 {
-        self.0 = self
-            .0
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        (self.0 >> 40) as f32 / (1_u32 << 23) as f32 - 1.0
-    }
-
-    fn next_vec(&mut self) -> Vec3 {
-        Vec3::new(self.next_signed(), self.next_signed(), self.next_signed())
-    }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -225,31 +169,11 @@ fn pinned_oscillator(m: f32, k: f32, h: f32, integrator: Integrator, stretch: f3
     sim
 }
 
-/// Extension |L| − L0 of the spring 0–1 (L0 = 1 m), in f64.
-fn extension(sim: &Simulation) -> f64 {
-    let p = &sim.particles().position;
-    (p[1].as_dvec3() - p[0].as_dvec3()).length() - 1.0
-}
-
 /// Kinetic + elastic energy of the oscillating particle, ½mv² + ½ke², in f64.
 fn oscillator_energy(sim: &Simulation, k: f64) -> f64 {
     let p = sim.particles();
     0.5 * f64::from(p.mass[1]) * p.velocity[1].as_dvec3().length_squared()
         + 0.5 * k * extension(sim).powi(2)
-}
-
-/// Period from the zero crossings of a sampled signal (sample n at time n·h), each located by
-/// linear interpolation; successive crossings are half a period apart.
-fn zero_crossing_period(signal: &[f64], h: f64) -> f64 {
-    let crossings: Vec<f64> = signal
-        .windows(2)
-        .enumerate()
-        .filter(|(_, w)| (w[0] > 0.0) != (w[1] > 0.0))
-        .map(|(n, w)| (n as f64 + w[0] / (w[0] - w[1])) * h)
-        .collect();
-    assert!(crossings.len() >= 3, "too few zero crossings");
-    let span = crossings[crossings.len() - 1] - crossings[0];
-    2.0 * span / (crossings.len() - 1) as f64
 }
 
 /// The period 2π√(m/k) as each first-order integrator discretises it, on a particle of mass
@@ -305,7 +229,7 @@ fn first_order_integrators_oscillate_with_their_discrete_period_and_energy_law()
             }
             energy = e;
         }
-        let measured = zero_crossing_period(&ext, hd);
+        let measured = zero_crossing_period(&ext, hd).0;
         eprintln!(
             "{:>16}: T = {period:.6} s, discrete 2πh/atan(ωh) = {discrete:.6} s, measured \
              {measured:.6} s (rel {:+.2e}; vs T {:+.2e}); worst energy drop rel. dev \
@@ -618,54 +542,20 @@ fn internal_forces_conserve_linear_and_angular_momentum() {
 #[test]
 fn wind_pushes_a_free_cloth_along_its_normal_by_the_drag_law() {
     let total_mass = 0.24_f32;
-    let (rho, cd) = (1.2_f32, 1.0_f32);
     let winds = [
         Vec3::new(0.0, 3.0, 0.0),
         3.0 * Vec3::new(1.0, 1.0, 0.0).normalize(),
     ];
     for integrator in Integrator::ALL {
         for wind in winds {
-            let mut cloth = GridBuilder::new(3, 3).size(1.0, 1.0).build().unwrap();
-            let tris = cloth.topology.triangles().to_vec();
-            let mut count = vec![0_u32; cloth.particles.len()];
-            for t in &tris {
-                for &i in t {
-                    count[i as usize] += 1;
-                }
-            }
-            let unit = total_mass / (3 * tris.len()) as f32;
-            for (i, &c) in count.iter().enumerate() {
-                cloth.particles.mass[i] = unit * c as f32;
-                cloth.particles.inv_mass[i] = 1.0 / (unit * c as f32);
-            }
+            let cloth = flat_air_cloth(total_mass);
             let substeps = if integrator == Integrator::Xpbd {
                 4
             } else {
                 16
             };
-            let config = SimConfig {
-                dt: 1.0 / 60.0,
-                substeps,
-                integrator,
-                material: Material::isotropic(
-                    SpringParams::new(40.0, 0.1),
-                    SpringParams::new(10.0, 0.1),
-                    SpringParams::new(2.0, 0.1),
-                ),
-                air: Air {
-                    density: rho,
-                    drag_coefficient: cd,
-                    lift_coefficient: 0.0,
-                    wind,
-                    gust: None,
-                },
-                forces: ForceSwitches {
-                    gravity: false,
-                    damping: false,
-                    ..ForceSwitches::default()
-                },
-                ..SimConfig::default()
-            };
+            let config = air_config(integrator, substeps, wind, false);
+            let (rho, cd) = (config.air.density, config.air.drag_coefficient);
             let h = f64::from(config.substep_dt());
             let mut sim = Simulation::new(cloth, config).unwrap();
             let m = f64::from(sim.particles().total_mass());
@@ -788,23 +678,12 @@ fn on_incline_at(
     friction: Friction,
 ) -> Simulation {
     let (q, n) = incline_frame();
-    let cloth = GridBuilder::new(3, 3)
-        .size(0.1, 0.1)
-        .rotation(q)
-        .origin(n * THICKNESS)
-        .mass(Mass::PerParticle(0.01))
-        .build()
-        .unwrap();
-    let stiff = SpringParams::new(1000.0, 0.1);
-    let mut config = SimConfig {
+    let config = SimConfig {
         integrator,
         substeps,
-        damping: 0.0,
-        material: Material::isotropic(stiff, stiff, stiff),
         ..SimConfig::default()
     };
-    config.forces.air = false;
-    let mut sim = Simulation::new(cloth, config).unwrap();
+    let mut sim = stiff_patch(q, n * THICKNESS, Vec3::ZERO, config);
     let collider = collider(surface)
         .with_thickness(THICKNESS)
         .with_friction(friction);
@@ -1003,21 +882,12 @@ fn a_conveyor_drags_the_cloth_by_kinetic_then_static_friction() {
     let belt = Vec3::new(1.0, 0.0, 0.0);
     for moving in ["plane", "box"] {
         for integrator in FRICTION_INTEGRATORS {
-            let cloth = GridBuilder::new(3, 3)
-                .size(0.1, 0.1)
-                .origin(Vec3::new(0.0, THICKNESS, 0.0))
-                .mass(Mass::PerParticle(0.01))
-                .build()
-                .unwrap();
-            let stiff = SpringParams::new(1000.0, 0.1);
-            let mut config = SimConfig {
+            let config = SimConfig {
                 integrator,
-                damping: 0.0,
-                material: Material::isotropic(stiff, stiff, stiff),
                 ..SimConfig::default()
             };
-            config.forces.air = false;
-            let mut sim = Simulation::new(cloth, config).unwrap();
+            let origin = Vec3::new(0.0, THICKNESS, 0.0);
+            let mut sim = stiff_patch(Quat::IDENTITY, origin, Vec3::ZERO, config);
             let shape = if moving == "plane" {
                 Collider::plane(Vec3::ZERO, Vec3::Y)
             } else {
@@ -1088,38 +958,14 @@ fn a_conveyor_drags_the_cloth_by_kinetic_then_static_friction() {
 #[test]
 #[ignore = "XPBD's v = (x − x_prev)/h in f32 drifts at many substeps; see the doc comment"]
 fn xpbd_velocity_from_f32_positions_keeps_the_drag_law() {
-    let mut cloth = GridBuilder::new(3, 3).size(1.0, 1.0).build().unwrap();
-    let tris = cloth.topology.triangles().to_vec();
-    let mut count = vec![0_u32; cloth.particles.len()];
-    for t in &tris {
-        for &i in t {
-            count[i as usize] += 1;
-        }
-    }
-    let unit = 0.24 / (3 * tris.len()) as f32;
-    for (i, &c) in count.iter().enumerate() {
-        cloth.particles.mass[i] = unit * c as f32;
-        cloth.particles.inv_mass[i] = 1.0 / (unit * c as f32);
-    }
+    let cloth = flat_air_cloth(0.24);
     let (w, substeps) = (3.0, 64);
-    let config = SimConfig {
-        dt: 1.0 / 60.0,
+    let config = air_config(
+        Integrator::Xpbd,
         substeps,
-        integrator: Integrator::Xpbd,
-        air: Air {
-            density: 1.2,
-            drag_coefficient: 1.0,
-            lift_coefficient: 0.0,
-            wind: Vec3::new(0.0, w as f32, 0.0),
-            gust: None,
-        },
-        forces: ForceSwitches {
-            gravity: false,
-            damping: false,
-            ..ForceSwitches::default()
-        },
-        ..SimConfig::default()
-    };
+        Vec3::new(0.0, w as f32, 0.0),
+        false,
+    );
     let h = f64::from(config.substep_dt());
     let mut sim = Simulation::new(cloth, config).unwrap();
     let m = f64::from(sim.particles().total_mass());
@@ -1403,25 +1249,15 @@ fn contact_is_inelastic_on_every_shape() {
             Integrator::ImplicitEuler,
             Integrator::Xpbd,
         ] {
-            let cloth = GridBuilder::new(3, 3)
-                .size(0.1, 0.1)
-                .origin(Vec3::new(0.0, THICKNESS + 0.02, 0.0))
-                .velocity(Vec3::new(0.0, -1.0, 0.0))
-                .mass(Mass::PerParticle(0.01))
-                .build()
-                .unwrap();
-            let stiff = SpringParams::new(1000.0, 0.1);
-            let mut config = SimConfig {
+            let config = SimConfig {
                 dt: 1.0 / 1920.0,
                 substeps: 1,
                 integrator,
-                damping: 0.0,
-                material: Material::isotropic(stiff, stiff, stiff),
                 ..SimConfig::default()
             };
-            config.forces.air = false;
             let h = config.substep_dt();
-            let mut sim = Simulation::new(cloth, config).unwrap();
+            let origin = Vec3::new(0.0, THICKNESS + 0.02, 0.0);
+            let mut sim = stiff_patch(Quat::IDENTITY, origin, Vec3::new(0.0, -1.0, 0.0), config);
             let collider = shape
                 .clone()
                 .with_thickness(THICKNESS)
