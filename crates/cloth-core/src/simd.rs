@@ -1287,13 +1287,14 @@ dispatched! {
 }
 
 dispatched! {
-    /// The velocities `(x − x₀)/h` of one component of a row of the grid XPBD path
+    /// The velocities `v + (x − x_pred)/h` of one component of a row of the grid XPBD path
     /// ([`grid_xpbd::velocities`]), with `kernel`.
     fn xpbd_velocities / velocities_avx2 / velocities_avx512(
         v: &mut [f32],
         x: &[f32],
         x0: &[f32],
         w: &[f32],
+        h: f32,
         inv_h: f32,
     ) = grid_xpbd::velocities;
 }

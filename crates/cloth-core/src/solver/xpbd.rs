@@ -14,7 +14,10 @@
 //!    grid's diagonal lines, in their place in the order; then the optional long-range
 //!    tethers; then collider contacts as position constraints
 //!    with position-level Coulomb friction;
-//! 3. velocities from positions: v ← (x − x_prev)/h.
+//! 3. velocities from positions: v ← v + (x − x_pred)/h, with x_pred = x_prev + h·v the
+//!    prediction recomputed with its own rounding: (x − x_prev)/h in exact arithmetic, without
+//!    the f32 rounding of x_pred (which (x − x_prev)/h makes a velocity drift of
+//!    ulp(|x|)/(2h), growing with the distance from the origin and the substeps).
 //!
 //! The sweep order is fixed, so results are deterministic. Springs of one kind on a grid
 //! touch each particle at most twice per row parity, which is what a later graph-colouring
@@ -232,7 +235,8 @@ pub(super) fn substep(
     }
     reference_sweeps(ctx, sc, hash);
 
-    // 3. velocities from positions.
+    // 3. velocities from positions (`v` is still the predicted velocity, and x_prev + h·v the
+    //    predicted position, as `kick_drift` rounded it).
     let inv_h = 1.0 / h;
     let p = &mut *ctx.particles;
     for ((v, &x), (&x0, &w)) in p
@@ -242,7 +246,7 @@ pub(super) fn substep(
         .zip(sc.prev.iter().zip(&p.inv_mass))
     {
         if w != 0.0 {
-            *v = (x - x0) * inv_h;
+            *v += (x - (x0 + h * *v)) * inv_h;
         }
     }
     false
