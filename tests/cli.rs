@@ -2,6 +2,9 @@
 //! gets an error naming the flag and its allowed range, with exit status 2 and no panic; `render`
 //! writes a PNG without a window.
 
+mod common;
+use common::in_ci;
+
 use std::process::Command;
 
 fn cloth(args: &[&str]) -> (i32, String, String) {
@@ -22,10 +25,6 @@ fn cloth(args: &[&str]) -> (i32, String, String) {
         String::from_utf8_lossy(&out.stdout).into_owned(),
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
-}
-
-fn in_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| !v.is_empty() && v != "false" && v != "0")
 }
 
 #[test]

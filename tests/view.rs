@@ -4,24 +4,13 @@
 //! Needs `xvfb-run` (apt package `xvfb` + `xauth`) and a graphics adapter (Mesa's software
 //! renderer will do). Outside CI a missing `xvfb-run` skips loudly; in CI (`CI=true`) it fails.
 
-use std::process::Command;
+mod common;
 
-fn in_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| !v.is_empty() && v != "false" && v != "0")
-}
+use std::process::Command;
 
 #[test]
 fn view_drape_runs_thirty_frames_under_xvfb_and_exits_cleanly() {
-    let have_xvfb = Command::new("sh")
-        .args(["-c", "command -v xvfb-run"])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !have_xvfb {
-        assert!(
-            !in_ci(),
-            "CI=true but xvfb-run is missing: apt-get install xvfb xauth"
-        );
-        eprintln!("\n!!!!! SKIPPED: xvfb-run not found, the window app is NOT tested\n");
+    if !common::have("xvfb-run", "xvfb xauth", "the window app") {
         return;
     }
     let xdg = std::env::temp_dir().join("cloth-test-xdg-view");

@@ -13,33 +13,15 @@
 //! its focus, the viewer's exit) under a deadline, and X delivers the events of one client in
 //! order, so the viewer handles every event sent before the Esc that ends it.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::{Duration, Instant};
 
-fn in_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| !v.is_empty() && v != "false" && v != "0")
-}
-
 /// How long one viewer run may take before it counts as hung.
 const RUN_DEADLINE: Duration = Duration::from_secs(90);
-
-/// Whether `tool` is on the PATH; outside CI a missing tool skips the test (loudly).
-fn have(tool: &str, package: &str) -> bool {
-    let found = Command::new("sh")
-        .args(["-c", &format!("command -v {tool}")])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !found {
-        assert!(
-            !in_ci(),
-            "CI=true but {tool} is missing: apt-get install {package}"
-        );
-        eprintln!("\n!!!!! SKIPPED: {tool} not found, the viewer's input is NOT tested\n");
-    }
-    found
-}
 
 /// A private X server, killed when dropped.
 struct Xvfb {
@@ -301,7 +283,8 @@ fn read_png(path: &Path) -> image::RgbaImage {
 
 /// Whether the tools are there (skipping loudly outside CI when not).
 fn tools() -> bool {
-    have("Xvfb", "xvfb") && have("xdotool", "xdotool")
+    common::have("Xvfb", "xvfb", "the viewer's input")
+        && common::have("xdotool", "xdotool", "the viewer's input")
 }
 
 /// Every documented control of the drape, against a run without input.

@@ -194,6 +194,12 @@ fn check_speeds(
     }
 }
 
+/// The velocity at which a pin with `target` moves its particle from `position` over a step
+/// of `dt` seconds (stage 2 of [`Simulation::step`]), m/s.
+fn pin_velocity(target: Vec3, position: Vec3, dt: f32) -> Vec3 {
+    (target - position) / dt
+}
+
 /// Whether `shape`'s plane normal or box or mesh rotation has unit length to within f32
 /// rounding (as [`Collider::validate`] and a collider's motion leave it).
 fn is_unit(shape: &crate::collide::Shape) -> bool {
@@ -549,10 +555,17 @@ impl Simulation {
         Ok(())
     }
 
+    /// How far a pin target may be from its particle, m: `limits.max_speed · dt`, the distance
+    /// the fastest particle allowed covers in a step ([`set_pin_target`](Self::set_pin_target)).
+    #[must_use]
+    pub fn pin_target_reach(&self) -> f32 {
+        self.config.limits.max_speed * self.config.dt
+    }
+
     /// Moves pinned particle `i` to `target` (m) over the next step, at constant velocity:
-    /// an animated attachment. Call it before every step to follow a path. The target is at
-    /// most `limits.max_speed · dt` from the particle (a faster pin would tear the cloth
-    /// apart and make every step fail).
+    /// an animated attachment. Call it before every step to follow a path. The target is
+    /// within [`pin_target_reach`](Self::pin_target_reach) of the particle: a pin faster than
+    /// `limits.max_speed` is refused (it would tear the cloth apart and make every step fail).
     pub fn set_pin_target(&mut self, i: usize, target: Vec3) -> Result<()> {
         self.check_index("set_pin_target", i)?;
         check::finite_vec("set_pin_target.target", target)?;
@@ -563,16 +576,20 @@ impl Simulation {
                 "a pinned particle (pin it first)",
             ));
         }
-        let distance = (target.as_dvec3() - self.particles.position[i].as_dvec3()).length();
-        let reach = f64::from(self.config.limits.max_speed) * f64::from(self.config.dt);
-        if distance > reach {
+        // The pin's speed as the step will take it.
+        let x = self.particles.position[i];
+        let speed = pin_velocity(target, x, self.config.dt).as_dvec3().length();
+        if speed > f64::from(self.config.limits.max_speed) {
             return Err(ClothError::invalid(
                 "set_pin_target.target",
                 target,
                 format!(
-                    "a point at most {reach:.4e} m from the particle's position {} (\
-                     `limits.max_speed` × `dt` = {} m/s × {} s; it is {distance:.4e} m away)",
-                    self.particles.position[i], self.config.limits.max_speed, self.config.dt
+                    "a point at most {:.4e} m from the particle's position {x} (\
+                     `limits.max_speed` × `dt` = {} m/s × {} s; it would move the pin at \
+                     {speed:.4e} m/s)",
+                    self.pin_target_reach(),
+                    self.config.limits.max_speed,
+                    self.config.dt
                 ),
             ));
         }
@@ -743,7 +760,7 @@ impl Simulation {
                             continue;
                         }
                         particles.velocity[i] = match target {
-                            Some(t) => (*t - particles.position[i]) / dt,
+                            Some(t) => pin_velocity(*t, particles.position[i], dt),
                             None => Vec3::ZERO,
                         };
                     }
@@ -855,18 +872,13 @@ impl Simulation {
                     &self.particles,
                 ),
             );
-            // The step's pin targets are the user's input: name the fastest.
-            let pins = self
-                .pin_target
-                .iter()
-                .enumerate()
-                .filter_map(|(i, t)| t.map(|t| (i, (t - self.particles.position[i]) / dt)));
-            let (index, velocity): (Vec<_>, Vec<_>) = pins.unzip();
-            if let Some((k, _, speed)) = fastest(velocity) {
+            // The step's pin targets are the user's input: name the fastest moving pin.
+            let pins = self.pin_target.iter().zip(&self.particles.position);
+            let velocity = pins.map(|(t, &x)| t.map_or(Vec3::ZERO, |t| pin_velocity(t, x, dt)));
+            if let Some((i, _, speed)) = fastest(velocity).filter(|f| f.2 > 0.0) {
                 hint.push_str(&format!(
-                    "; this step's pin targets (`set_pin_target`) move particle {} at up to \
-                     {speed:.3e} m/s",
-                    index[k]
+                    "; this step's pin targets (`set_pin_target`) move particle {i} at up to \
+                     {speed:.3e} m/s"
                 ));
             }
             return Err(ClothError::Unstable {

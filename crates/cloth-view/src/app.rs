@@ -167,8 +167,7 @@ impl World {
         if let Some((i, target)) = grab {
             // A drag faster than the speed limit follows the cursor at that limit (the
             // library refuses a faster pin target).
-            let config = self.sim.config();
-            let reach = 0.99 * config.limits.max_speed * config.dt;
+            let reach = 0.99 * self.sim.pin_target_reach();
             let at = self.sim.particles().position[i];
             let _ = self
                 .sim
