@@ -98,7 +98,7 @@ fn drape(c: &mut Criterion) {
     }
 }
 
-/// Implicit Euler's drape, the built-in `implicit-drape` scene (128², 2 substeps per 1/60 s,
+/// Implicit Euler's drape, the built-in `implicit-drape` scene (128², 3 substeps per 1/60 s,
 /// CG to a relative residual of 10⁻² of the larger of its right-hand side and one substep's
 /// gravity impulse), warmed onto the ball, on 1 and 2 threads.
 fn implicit_drape(c: &mut Criterion) {

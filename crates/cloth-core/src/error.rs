@@ -17,7 +17,7 @@ pub enum ClothError {
         name: String,
         /// The value that was given, formatted.
         value: String,
-        /// The allowed range, in words, e.g. `2 ..= 4096`.
+        /// The allowed range, in words, e.g. `2 ..= 8192`.
         allowed: String,
     },
     /// A particle index is not in the cloth.

@@ -41,10 +41,11 @@
 //! - [`presets`]: ready-made scenes built in code;
 //! - `scene` (feature `scene`, on by default): TOML scene files, the built-in scenes;
 //! - [`simd`]: the run-time choice of the fast path's instruction set;
+//! - [`error`]: [`ClothError`], the crate's one error type;
 //! - [`Simulation`]: the step pipeline.
 
-// `unsafe` is denied everywhere but in `simd`, whose guarded calls of `#[target_feature]`
-// functions carry `SAFETY` comments.
+// `unsafe` is denied everywhere but in `simd` and `solver/shared_rows.rs` (and the few blocks of
+// `solver/grid_kernel.rs` that call `SharedRows`), whose unsafe calls carry `SAFETY` comments.
 #![deny(unsafe_code)]
 // `!(x > 0.0)` is the deliberate NaN-catching test of the contact code.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]

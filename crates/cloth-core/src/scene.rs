@@ -47,7 +47,7 @@ pub struct Scene {
     /// One-line description. Default empty.
     #[serde(default)]
     pub description: String,
-    /// Default run length for `cloth sim` and the viewer, s, in `(0, 1e6]`
+    /// Default run length of `cloth sim` (without `--frames` or `--seconds`), s, in `(0, 1e6]`
     /// ([`MAX_DURATION`]). Default 4 s.
     #[serde(default = "default_duration")]
     pub duration: f32,
@@ -112,7 +112,7 @@ pub struct ClothDesc {
     /// `[rows, cols]`, each 2 ..= 8192.
     #[serde(deserialize_with = "exact")]
     pub resolution: [u32; 2],
-    /// `[width, height]`, m. Default `[1, 1]`. Ignored when `spacing` is given.
+    /// `[width, height]`, m. Default `[1, 1]`. Either `size` or `spacing`, not both.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[serde(deserialize_with = "exact_opt")]
     pub size: Option<[f32; 2]>,
