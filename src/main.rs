@@ -56,7 +56,9 @@ Viewer controls: left-drag on the cloth grabs it, elsewhere orbits; right/middle
 wheel zooms; Ctrl/Shift-click pins or unpins; Space pause, N single step, R reset,
 C orbit/fly camera (fly: WASD, Q/E down/up, Shift faster, right-drag looks), W wireframe,
 K contacts, Home reset view, Tab hide/show the panel, Esc quit (after taking --screenshot). On
-quitting, the viewer prints one line of its state to standard error.
+quitting, the viewer prints one line of its state to standard error; CLOTH_VIEW_LAYOUT=FILE
+makes it write that line and where the panel's widgets are to FILE after every frame (for
+scripts that click the panel; see crates/cloth-view/README.md).
 
 Without a GPU, rendering needs Mesa's software renderer and, for the window, a display (or
 `xvfb-run -a cloth view`).

@@ -4,14 +4,15 @@
 //! resizes down to 1 × 1 and past what the device can draw, unmapping and mapping the window,
 //! and keys pressed hundreds of times. The viewer quits on Esc, which takes its `--screenshot`
 //! first, and prints a one-line summary of its state on standard error; the tests read that
-//! line and the screenshot.
+//! line and the screenshot. The side panel is clicked where the viewer's `CLOTH_VIEW_LAYOUT`
+//! hook says its widgets are; the same file carries that summary line after every frame.
 //!
 //! Needs `Xvfb` (apt package `xvfb`), `xdotool` and a graphics adapter (Mesa's software
 //! renderer will do). Outside CI a missing tool skips loudly; in CI (`CI=true`) it fails.
 //!
-//! No fixed sleeps: every wait polls for what it waits for (the X server, the window,
-//! its focus, the viewer's exit) under a deadline, and X delivers the events of one client in
-//! order, so the viewer handles every event sent before the Esc that ends it.
+//! No fixed sleeps: every wait polls for what it waits for (the X server, the window, its
+//! focus, the viewer's exit, a click's effect) under a deadline, and X delivers the events of
+//! one client in order, so the viewer handles every event sent before the Esc that ends it.
 
 mod common;
 
@@ -137,6 +138,8 @@ struct Viewer {
     child: Child,
     stderr: PathBuf,
     window: String,
+    /// Where its `CLOTH_VIEW_LAYOUT` hook writes, if on.
+    layout: Option<PathBuf>,
 }
 
 impl Viewer {
@@ -144,6 +147,19 @@ impl Viewer {
     /// (taken when Esc quits it; the frame count is only a backstop), waits for its window
     /// and gives it the keyboard focus.
     fn start(x: &Xvfb, dir: &Path, scene: &str, shot: &Path) -> Self {
+        Self::start_with(x, dir, scene, shot, "640x400", None)
+    }
+
+    /// As [`Viewer::start`], with the window `size` (`WxH`) and the `CLOTH_VIEW_LAYOUT` hook
+    /// writing to `layout` if given.
+    fn start_with(
+        x: &Xvfb,
+        dir: &Path,
+        scene: &str,
+        shot: &Path,
+        size: &str,
+        layout: Option<&Path>,
+    ) -> Self {
         let xdg = dir.join("xdg");
         std::fs::create_dir_all(&xdg).expect("xdg dir");
         #[cfg(unix)]
@@ -153,10 +169,16 @@ impl Viewer {
                 .expect("chmod xdg dir");
         }
         let stderr = dir.join(format!("{scene}-{}.stderr", shot_name(shot)));
-        let child = Command::new(env!("CARGO_BIN_EXE_cloth"))
-            .args(["view", scene, "--resolution", "16", "--size", "640x400"])
+        let mut command = Command::new(env!("CARGO_BIN_EXE_cloth"));
+        command
+            .args(["view", scene, "--resolution", "16", "--size", size])
             .args(["--frames", "1000000", "--screenshot"])
             .arg(shot)
+            .env_remove("CLOTH_VIEW_LAYOUT");
+        if let Some(path) = layout {
+            command.env("CLOTH_VIEW_LAYOUT", path);
+        }
+        let child = command
             .env("DISPLAY", &x.display)
             .env("XDG_RUNTIME_DIR", &xdg)
             .env_remove("WAYLAND_DISPLAY")
@@ -169,6 +191,7 @@ impl Viewer {
             child,
             stderr,
             window: String::new(),
+            layout: layout.map(Path::to_path_buf),
         };
         viewer.window = viewer.poll("its window", || {
             let out = x.xdotool(&["search", "--onlyvisible", "--name", "^cloth"]);
@@ -210,6 +233,58 @@ impl Viewer {
             let out = x.xdotool(&["getwindowfocus"]);
             (String::from_utf8_lossy(&out.stdout).trim() == window).then_some(())
         });
+    }
+
+    /// Polls the `CLOTH_VIEW_LAYOUT` file (rewritten after every drawn frame) until `ready`
+    /// holds for it, failing if the viewer exits or 30 s pass; returns what it read.
+    fn layout_when(&mut self, what: &str, ready: impl Fn(&Layout) -> bool) -> Layout {
+        let path = self
+            .layout
+            .clone()
+            .expect("a viewer started with a layout file");
+        let start = Instant::now();
+        let mut last = String::new();
+        loop {
+            // a missing file (before the first frame) reads as empty
+            last = std::fs::read_to_string(&path).unwrap_or(last);
+            if let Some(layout) = Layout::parse(&last)
+                && ready(&layout)
+            {
+                return layout;
+            }
+            if let Ok(Some(status)) = self.child.try_wait() {
+                panic!(
+                    "cloth view exited ({status}) waiting for {what}: {}",
+                    self.log()
+                );
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(30),
+                "no {what} after 30 s; the layout file last read:\n{last}\nstderr: {}",
+                self.log()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Clicks the panel widget `label` at the centre of where the layout file shows it (once
+    /// it shows it).
+    fn click(&mut self, x: &Xvfb, label: &str) {
+        let layout = self.layout_when(&format!("the widget {label:?}"), |l| {
+            l.widget(label).is_some()
+        });
+        let [x0, y0, x1, y1] = layout.widget(label).expect("the widget");
+        let (cx, cy) = (((x0 + x1) / 2.0).round(), ((y0 + y1) / 2.0).round());
+        let (cx, cy) = (format!("{cx}"), format!("{cy}"));
+        x.xdo(&[
+            "mousemove",
+            "--window",
+            &self.window,
+            &cx,
+            &cy,
+            "click",
+            "1",
+        ]);
     }
 
     fn log(&self) -> String {
@@ -273,6 +348,67 @@ fn eye(line: &str) -> [f32; 3] {
         .map(|s| s.trim().parse().expect("eye coordinate"))
         .collect();
     [v[0], v[1], v[2]]
+}
+
+/// The file the viewer's `CLOTH_VIEW_LAYOUT` hook writes after every drawn frame: its summary
+/// line (as printed on exit), then `x0 y0 x1 y1 LABEL` per labelled panel widget in window
+/// pixels.
+struct Layout {
+    summary: String,
+    widgets: Vec<(String, [f32; 4])>,
+}
+
+impl Layout {
+    /// None for an empty file (none written yet).
+    fn parse(text: &str) -> Option<Self> {
+        let mut lines = text.lines();
+        let summary = lines.next()?.to_string();
+        assert!(
+            summary.starts_with("cloth view: ") && summary.contains(" frames, "),
+            "the layout file's first line is the summary: {text}"
+        );
+        let widgets = lines
+            .map(|line| {
+                let mut fields = line.splitn(5, ' ');
+                let mut rect = [0.0; 4];
+                for v in &mut rect {
+                    *v = fields
+                        .next()
+                        .and_then(|f| f.parse().ok())
+                        .unwrap_or_else(|| panic!("a widget line `x0 y0 x1 y1 LABEL`: {line}"));
+                }
+                let label = fields.next().unwrap_or_else(|| panic!("no label: {line}"));
+                (label.to_string(), rect)
+            })
+            .collect();
+        Some(Self { summary, widgets })
+    }
+
+    /// The first widget labelled `label`: `[x0, y0, x1, y1]`.
+    fn widget(&self, label: &str) -> Option<[f32; 4]> {
+        self.widgets
+            .iter()
+            .find(|(l, _)| l == label)
+            .map(|&(_, rect)| rect)
+    }
+
+    /// Frames drawn, steps since the start or the last reset, and the simulated time as the
+    /// summary prints it.
+    fn frames(&self) -> f32 {
+        number_after(&self.summary, "cloth view: ")
+    }
+
+    fn step(&self) -> f32 {
+        number_after(&self.summary, ", step ")
+    }
+
+    fn time(&self) -> f32 {
+        number_after(&self.summary, "at t = ")
+    }
+
+    fn paused(&self) -> bool {
+        self.summary.contains(" s (paused), step ")
+    }
 }
 
 fn read_png(path: &Path) -> image::RgbaImage {
@@ -503,4 +639,161 @@ fn hostile_input_never_panics_hangs_or_shows_nan() {
     let shot = read_png(&png);
     assert_eq!(shot.dimensions(), (640, 400));
     eprintln!("hostile test: {:.1} s", started.elapsed().as_secs_f32());
+}
+
+/// The drape's step, s (`scenes/drape.toml`, `[solver] dt`).
+const DRAPE_DT: f32 = 1.0 / 60.0;
+
+/// The side panel clicked with the mouse: "pause" stops the simulation while frames are drawn,
+/// "step" advances it one step a click, "reset" takes it back to t = 0 (still paused), "run"
+/// runs it again; the "display" section's "wireframe (W)" and "contacts (K)" checkboxes turn
+/// the overlays on; its camera choices "fly" and "orbit" switch the camera (W held moves the
+/// fly camera's eye), and "reset view (Home)" puts it back. The viewer's `CLOTH_VIEW_LAYOUT`
+/// hook says where each widget is (no coordinates here depend on a font or layout) and its
+/// state after every frame: each click is followed by a wait for its effect, so no click lands
+/// while an earlier one is still unhandled (egui reports one click of a button a frame).
+#[test]
+fn clicks_on_the_panel_pause_step_reset_and_toggle_the_display() {
+    if !tools() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let x = Xvfb::start();
+    let started = Instant::now();
+    let png = dir.path().join("panel.png");
+    let layout_file = dir.path().join("layout.txt");
+    // 600 px high: the open display section fits (in 400, its last widgets are scrolled out
+    // of view, and the layout file leaves them out)
+    let mut v = Viewer::start_with(&x, dir.path(), "drape", &png, "640x600", Some(&layout_file));
+
+    let first = v.layout_when("the panel's buttons", |l| l.widget("pause").is_some());
+    assert!(
+        !first.paused(),
+        "the drape starts running: {}",
+        first.summary
+    );
+    let start_camera = camera(&first.summary).to_string();
+
+    // pause: the button turns into "run" and the summary says paused
+    v.click(&x, "pause");
+    let paused = v.layout_when("the pause", |l| l.paused() && l.widget("run").is_some());
+    assert!(paused.widget("pause").is_none(), "{:?}", paused.widgets);
+    // 20 frames drawn later not one step has run (the time exactly as it was)
+    let later = v.layout_when("20 frames drawn paused", |l| {
+        l.frames() >= paused.frames() + 20.0
+    });
+    assert!(later.paused(), "{}", later.summary);
+    assert_eq!(
+        (later.step(), later.time()),
+        (paused.step(), paused.time()),
+        "steps ran while paused: {} -> {}",
+        paused.summary,
+        later.summary
+    );
+
+    // step: exactly one step a click (each click waited for: its step shows before the next)
+    let mut before = later;
+    for _ in 0..3 {
+        v.click(&x, "step");
+        let after = v.layout_when("a step", |l| l.step() > before.step());
+        assert_eq!(
+            after.step(),
+            before.step() + 1.0,
+            "one click, one step: {} -> {}",
+            before.summary,
+            after.summary
+        );
+        assert!(after.paused(), "step keeps it paused: {}", after.summary);
+        before = after;
+    }
+    // three steps of dt; each time is printed to 1 ms (rounding: 0.5 ms each)
+    let advanced = before.time() - paused.time();
+    assert!(
+        (advanced - 3.0 * DRAPE_DT).abs() <= 0.0011,
+        "three steps advanced t by {advanced} s, not 3 dt = {} s",
+        3.0 * DRAPE_DT
+    );
+
+    // reset: back to t = 0, no step, still paused
+    v.click(&x, "reset");
+    let reset = v.layout_when("the reset", |l| l.step() == 0.0);
+    assert!(
+        reset.summary.contains("at t = 0.000 s (paused), step 0,"),
+        "{}",
+        reset.summary
+    );
+
+    // run: the simulation steps again by itself, the button says "pause" again
+    v.click(&x, "run");
+    let running = v.layout_when("steps after run", |l| {
+        !l.paused() && l.step() >= 2.0 && l.widget("pause").is_some()
+    });
+    assert!(running.time() > 0.0, "{}", running.summary);
+
+    // the display section, opened by its header; its two overlay checkboxes
+    v.click(&x, "display");
+    let display = v.layout_when("the display section open", |l| {
+        l.widget("wireframe (W)").is_some() && l.widget("reset view (Home)").is_some()
+    });
+    assert!(
+        display.summary.contains("wireframe off, contacts off"),
+        "{}",
+        display.summary
+    );
+    v.click(&x, "wireframe (W)");
+    v.layout_when("the wireframe on", |l| l.summary.contains("wireframe on"));
+    v.click(&x, "contacts (K)");
+    let overlays = v.layout_when("the contacts on", |l| l.summary.contains("contacts on"));
+    assert!(
+        overlays.summary.contains("wireframe on, contacts on"),
+        "{}",
+        overlays.summary
+    );
+
+    // the camera choices and reset view: "fly", then W held moves the eye; "orbit"; the
+    // button puts the camera back exactly where it started. (Not a wheel zoom over the scene:
+    // egui judges a wheel event by where the pointer was at its last frame, so a notch that
+    // arrives with the move off the panel, before a frame is drawn, is egui's.)
+    v.click(&x, "fly");
+    v.layout_when("the fly camera", |l| l.summary.contains("camera fly at"));
+    x.xdo(&["keydown", "w"]);
+    let flown = v.layout_when("the eye moved by W", |l| {
+        eye(&l.summary) != eye(&first.summary)
+    });
+    x.xdo(&["keyup", "w"]);
+    assert!(
+        flown.summary.contains("wireframe on"),
+        "W in the fly camera moves, it does not toggle the wireframe: {}",
+        flown.summary
+    );
+    v.click(&x, "orbit");
+    let orbit = v.layout_when("the orbit camera", |l| {
+        l.summary.contains("camera orbit at")
+    });
+    assert_ne!(
+        camera(&orbit.summary),
+        start_camera,
+        "the fly moved the eye"
+    );
+    v.click(&x, "reset view (Home)");
+    v.layout_when("the start view", |l| camera(&l.summary) == start_camera);
+
+    let log = v.quit(&x);
+    let end = summary(&log);
+    eprintln!("{end}");
+    assert!(
+        end.contains("wireframe on, contacts on") && end.contains("panel shown"),
+        "{end}"
+    );
+    assert!(!end.contains("(paused)"), "{end}");
+    assert_eq!(camera(end), start_camera, "{end}");
+    assert_eq!(read_png(&png).dimensions(), (640, 600));
+    eprintln!("panel test: {:.1} s", started.elapsed().as_secs_f32());
+}
+
+/// The camera part of a summary: mode, distance and eye.
+fn camera(line: &str) -> &str {
+    let start = line.find("camera ").expect("camera");
+    let end = start + line[start..].find(')').expect(")");
+    &line[start..=end]
 }

@@ -57,6 +57,10 @@ pub fn run(options: ViewOptions) -> anyhow::Result<()> {
         anyhow::bail!("a screenshot needs a frame count to take it at (--frames N)");
     }
     let mut app = App::new(options, world);
+    if let Some(path) = std::env::var_os(LAYOUT_VAR).filter(|p| !p.is_empty()) {
+        app.layout_file = Some(path.into());
+        app.panel.layout = crate::ui::Layout::on();
+    }
     event_loop.run_app(&mut app)?;
     if app.gfx.is_some() {
         eprintln!("cloth view: {}", app.summary());
@@ -66,6 +70,17 @@ pub fn run(options: ViewOptions) -> anyhow::Result<()> {
         None => Ok(()),
     }
 }
+
+/// The debugging hook's environment variable: `CLOTH_VIEW_LAYOUT=FILE cloth view` rewrites
+/// `FILE` after every drawn frame with the viewer's state and where the panel's widgets are:
+/// first the line the viewer prints on exit (`cloth view: ` and its summary), then one line
+/// `x0 y0 x1 y1 LABEL` per labelled widget of the panel ([`crate::ui::Layout::widgets`]: the
+/// part of it that takes the pointer, in window pixels with the origin at the top-left corner;
+/// widgets scrolled out of view and a hidden panel's are left out). The file is written beside
+/// it and renamed over it, so a reader never sees half of one; a failed write is said once and
+/// turns the hook off. Scripts and the input tests (`tests/view_input.rs`) find and click the
+/// panel's widgets with it. Unset or empty: nothing is recorded or written.
+pub const LAYOUT_VAR: &str = "CLOTH_VIEW_LAYOUT";
 
 /// Where to get a display: the end of every "no window" message.
 const DISPLAY_HINT: &str = "set DISPLAY or WAYLAND_DISPLAY, or run under a virtual display \
@@ -250,6 +265,8 @@ struct App {
     shot_taken: bool,
     /// Particles grabbed with the mouse so far.
     grabs: u64,
+    /// Where the [`LAYOUT_VAR`] hook writes (None: off).
+    layout_file: Option<std::path::PathBuf>,
     fatal: Option<anyhow::Error>,
 }
 
@@ -297,6 +314,7 @@ impl App {
             quit_at: None,
             shot_taken: false,
             grabs: 0,
+            layout_file: None,
             fatal: None,
         }
     }
@@ -349,8 +367,9 @@ impl App {
         })
     }
 
-    /// The state at exit, one line: frames drawn, simulated time, pause, camera, panel and
-    /// display toggles, pins and the last message (for scripted runs and the input tests).
+    /// The state at exit, one line: frames drawn, simulated time, pause, steps since the
+    /// start or the last reset, camera, panel and display toggles, pins and the last message
+    /// (for scripted runs and the input tests).
     fn summary(&self) -> String {
         let sim = &self.world.sim;
         let pinned = (0..sim.particles().len())
@@ -358,13 +377,14 @@ impl App {
             .count();
         let on = |b: bool| if b { "on" } else { "off" };
         let mut line = format!(
-            "{} frames, {} at t = {:.3} s{}, {} particles, {} (resolution {}), camera {} at \
-             {:.3} m from its target (eye {:.3}), panel {}, wireframe {}, contacts {}, {pinned} \
-             pinned, {} grabs, window {}x{}",
+            "{} frames, {} at t = {:.3} s{}, step {}, {} particles, {} (resolution {}), camera \
+             {} at {:.3} m from its target (eye {:.3}), panel {}, wireframe {}, contacts {}, \
+             {pinned} pinned, {} grabs, window {}x{}",
             self.frames,
             self.world.scene,
             sim.time(),
             if self.world.paused { " (paused)" } else { "" },
+            sim.steps(),
             sim.particles().len(),
             self.world.integrator.name(),
             self.world.resolution,
@@ -688,6 +708,7 @@ impl App {
         self.gfx = Some(gfx);
 
         self.frames += 1;
+        self.write_layout();
         let due = self.quit_at.is_some() || self.options.frames.is_some_and(|n| self.frames >= n);
         if due && (self.options.screenshot.is_none() || self.shot_taken) {
             event_loop.exit();
@@ -697,6 +718,36 @@ impl App {
                  frames"
             ));
             event_loop.exit();
+        }
+    }
+
+    /// The [`LAYOUT_VAR`] hook, after each drawn frame (when on).
+    fn write_layout(&mut self) {
+        use std::fmt::Write as _;
+        let (Some(path), Some(gfx)) = (&self.layout_file, &self.gfx) else {
+            return;
+        };
+        let ppp = gfx.egui_ctx.pixels_per_point();
+        let mut text = format!("cloth view: {}", self.summary());
+        for (label, r) in self.panel.layout.widgets() {
+            let _ = write!(
+                text,
+                "\n{:.1} {:.1} {:.1} {:.1} {label}",
+                r.min.x * ppp,
+                r.min.y * ppp,
+                r.max.x * ppp,
+                r.max.y * ppp
+            );
+        }
+        text.push('\n');
+        let mut tmp = path.clone().into_os_string();
+        tmp.push(".tmp");
+        if let Err(e) = std::fs::write(&tmp, text).and_then(|()| std::fs::rename(&tmp, path)) {
+            eprintln!(
+                "cloth view: cannot write the layout to {} ({LAYOUT_VAR}): {e}",
+                path.display()
+            );
+            self.layout_file = None;
         }
     }
 

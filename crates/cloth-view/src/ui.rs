@@ -76,6 +76,57 @@ pub struct Status {
     pub friction: Option<Friction>,
 }
 
+/// Where the panel's labelled widgets were drawn in the last frame, for the viewer's
+/// debugging hook [`CLOTH_VIEW_LAYOUT`](crate::app::LAYOUT_VAR) (the input tests click them):
+/// off by default, and then nothing is recorded.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Layout(Option<Vec<(String, egui::Rect)>>);
+
+impl Layout {
+    /// A layout that records the widgets of every frame the panel is drawn in.
+    #[must_use]
+    pub fn on() -> Self {
+        Self(Some(Vec::new()))
+    }
+
+    /// The last frame's labelled widgets (buttons, checkboxes, sliders, combo boxes, camera
+    /// choices and section headers) in the order drawn, each with the part of it that takes the
+    /// pointer, points; a widget scrolled out of view is left out. Empty when off or when the
+    /// panel is hidden.
+    #[must_use]
+    pub fn widgets(&self) -> &[(String, egui::Rect)] {
+        self.0.as_deref().unwrap_or_default()
+    }
+
+    fn clear(&mut self) {
+        if let Some(widgets) = &mut self.0 {
+            widgets.clear();
+        }
+    }
+
+    /// Records `response` under `label` (when on) and passes it on.
+    fn note(&mut self, label: &str, response: egui::Response) -> egui::Response {
+        if let Some(widgets) = &mut self.0
+            && response.interact_rect.is_positive()
+        {
+            widgets.push((label.to_owned(), response.interact_rect));
+        }
+        response
+    }
+
+    fn button(&mut self, ui: &mut egui::Ui, label: &str) -> egui::Response {
+        self.note(label, ui.button(label))
+    }
+
+    fn checkbox(&mut self, ui: &mut egui::Ui, value: &mut bool, label: &str) {
+        self.note(label, ui.checkbox(value, label));
+    }
+
+    fn slider(&mut self, ui: &mut egui::Ui, label: &str, slider: egui::Slider<'_>) {
+        self.note(label, ui.add(slider.text(label)));
+    }
+}
+
 /// The panel's own state: choices that take effect on "rebuild".
 #[derive(Debug, Clone, PartialEq)]
 pub struct Panel {
@@ -91,6 +142,8 @@ pub struct Panel {
     pub visible: bool,
     /// Width the panel took in the last frame, points (0 when hidden).
     pub width: f32,
+    /// Where its widgets were drawn (recorded only when turned on).
+    pub layout: Layout,
 }
 
 impl Panel {
@@ -104,6 +157,7 @@ impl Panel {
             save_path: "my-scene.toml".into(),
             visible: true,
             width: 0.0,
+            layout: Layout::default(),
         }
     }
 
@@ -117,6 +171,7 @@ impl Panel {
         status: &Status,
     ) -> Vec<Action> {
         let mut actions = Vec::new();
+        self.layout.clear();
         if !self.visible {
             self.width = 0.0;
             return actions;
@@ -144,24 +199,25 @@ impl Panel {
     ) {
         ui.heading("cloth");
         status_block(ui, status);
+        let layout = &mut self.layout;
         ui.horizontal(|ui| {
-            if ui
-                .button(if status.paused { "run" } else { "pause" })
+            if layout
+                .button(ui, if status.paused { "run" } else { "pause" })
                 .clicked()
             {
                 actions.push(Action::TogglePause);
             }
-            if ui.button("step").clicked() {
+            if layout.button(ui, "step").clicked() {
                 actions.push(Action::Step);
             }
-            if ui.button("reset").clicked() {
+            if layout.button(ui, "reset").clicked() {
                 actions.push(Action::Reset);
             }
         });
         ui.separator();
 
-        ui.collapsing("scene", |ui| {
-            egui::ComboBox::from_label("scene")
+        let scene = ui.collapsing("scene", |ui| {
+            let combo = egui::ComboBox::from_label("scene")
                 .selected_text(self.scene.name())
                 .show_ui(ui, |ui| {
                     for s in SceneKind::all() {
@@ -169,28 +225,38 @@ impl Panel {
                         ui.selectable_value(&mut self.scene, s, label);
                     }
                 });
-            egui::ComboBox::from_label("integrator")
+            layout.note("scene", combo.response);
+            let combo = egui::ComboBox::from_label("integrator")
                 .selected_text(self.integrator.name())
                 .show_ui(ui, |ui| {
                     for i in Integrator::ALL {
                         ui.selectable_value(&mut self.integrator, i, i.name());
                     }
                 });
-            ui.add(egui::Slider::new(&mut self.resolution, 4..=160).text("resolution"));
-            if ui.button("rebuild").clicked() {
+            layout.note("integrator", combo.response);
+            layout.slider(
+                ui,
+                "resolution",
+                egui::Slider::new(&mut self.resolution, 4..=160),
+            );
+            if layout.button(ui, "rebuild").clicked() {
                 actions.push(Action::Rebuild {
                     scene: Box::new(self.scene.clone()),
                     resolution: self.resolution,
                     integrator: self.integrator,
                 });
             }
-        })
-        .header_response
-        .on_hover_text("scene, integrator and resolution take effect on rebuild");
+        });
+        layout.note(
+            "scene",
+            scene
+                .header_response
+                .on_hover_text("scene, integrator and resolution take effect on rebuild"),
+        );
         ui.horizontal(|ui| {
             ui.text_edit_singleline(&mut self.save_path);
-            if ui
-                .button("save scene")
+            if layout
+                .button(ui, "save scene")
                 .on_hover_text(
                     "write the current settings as a scene file (`cloth view FILE` opens it)",
                 )
@@ -201,36 +267,42 @@ impl Panel {
         });
 
         let mut cfg = *config;
-        ui.collapsing("time", |ui| {
-            ui.add(
-                egui::Slider::new(&mut cfg.dt, 1.0 / 480.0..=1.0 / 20.0)
-                    .logarithmic(true)
-                    .text("dt [s]"),
+        let time = ui.collapsing("time", |ui| {
+            layout.slider(
+                ui,
+                "dt [s]",
+                egui::Slider::new(&mut cfg.dt, 1.0 / 480.0..=1.0 / 20.0).logarithmic(true),
             );
-            ui.add(
-                egui::Slider::new(&mut cfg.substeps, 1..=4000)
-                    .logarithmic(true)
-                    .text("substeps"),
+            layout.slider(
+                ui,
+                "substeps",
+                egui::Slider::new(&mut cfg.substeps, 1..=4000).logarithmic(true),
             );
             ui.label(format!("h = {:.2e} s", cfg.substep_dt()));
         });
-        ui.collapsing("material", |ui| {
+        layout.note("time", time.header_response);
+        let material = ui.collapsing("material", |ui| {
             let mut structural = cfg.material.warp;
-            spring_sliders(ui, "structural", &mut structural, 5000.0);
+            spring_sliders(layout, ui, "structural", &mut structural, 5000.0);
             if structural != cfg.material.warp {
                 cfg.material.warp = structural;
                 cfg.material.weft = structural;
             }
-            spring_sliders(ui, "shear", &mut cfg.material.shear, 2000.0);
-            spring_sliders(ui, "bend", &mut cfg.material.bend, 500.0);
-            ui.add(
-                egui::Slider::new(&mut cfg.damping, 0.0..=0.1)
-                    .logarithmic(true)
-                    .text("global damping [N·s/m]"),
+            spring_sliders(layout, ui, "shear", &mut cfg.material.shear, 2000.0);
+            spring_sliders(layout, ui, "bend", &mut cfg.material.bend, 500.0);
+            layout.slider(
+                ui,
+                "global damping [N·s/m]",
+                egui::Slider::new(&mut cfg.damping, 0.0..=0.1).logarithmic(true),
             );
         });
-        ui.collapsing("forces", |ui| {
-            ui.add(egui::Slider::new(&mut cfg.gravity.y, -30.0..=0.0).text("gravity y [m/s²]"));
+        layout.note("material", material.header_response);
+        let forces = ui.collapsing("forces", |ui| {
+            layout.slider(
+                ui,
+                "gravity y [m/s²]",
+                egui::Slider::new(&mut cfg.gravity.y, -30.0..=0.0),
+            );
             let speed = Vec3::new(cfg.air.wind.x, 0.0, cfg.air.wind.z).length();
             let mut strength = cfg.air.wind.length();
             let mut heading = if speed > 0.0 {
@@ -239,50 +311,76 @@ impl Panel {
                 0.0
             };
             let before = (strength, heading);
-            ui.add(egui::Slider::new(&mut strength, 0.0..=20.0).text("wind [m/s]"));
-            ui.add(egui::Slider::new(&mut heading, -180.0..=180.0).text("wind heading [°]"));
+            layout.slider(
+                ui,
+                "wind [m/s]",
+                egui::Slider::new(&mut strength, 0.0..=20.0),
+            );
+            layout.slider(
+                ui,
+                "wind heading [°]",
+                egui::Slider::new(&mut heading, -180.0..=180.0),
+            );
             if (strength, heading) != before {
                 let h = heading.to_radians();
                 cfg.air.wind = Vec3::new(h.cos(), 0.0, h.sin()) * strength;
             }
             let mut gusts = cfg.air.gust.is_some();
-            ui.checkbox(&mut gusts, "gusts");
+            layout.checkbox(ui, &mut gusts, "gusts");
             if gusts != cfg.air.gust.is_some() {
                 cfg.air.gust = gusts.then(Gust::default);
             }
-            ui.add(egui::Slider::new(&mut cfg.air.density, 0.0..=3.0).text("air density [kg/m³]"));
-            ui.checkbox(&mut cfg.forces.air, "air drag and lift");
+            layout.slider(
+                ui,
+                "air density [kg/m³]",
+                egui::Slider::new(&mut cfg.air.density, 0.0..=3.0),
+            );
+            layout.checkbox(ui, &mut cfg.forces.air, "air drag and lift");
         });
+        layout.note("forces", forces.header_response);
         if cfg != *config {
             actions.push(Action::Config(cfg));
         }
         if let Some(friction) = status.friction {
-            ui.collapsing("friction", |ui| {
+            let header = ui.collapsing("friction", |ui| {
                 let mut f = friction;
-                ui.add(egui::Slider::new(&mut f.static_coefficient, 0.0..=1.5).text("μ static"));
-                ui.add(egui::Slider::new(&mut f.kinetic_coefficient, 0.0..=1.5).text("μ kinetic"));
+                layout.slider(
+                    ui,
+                    "μ static",
+                    egui::Slider::new(&mut f.static_coefficient, 0.0..=1.5),
+                );
+                layout.slider(
+                    ui,
+                    "μ kinetic",
+                    egui::Slider::new(&mut f.kinetic_coefficient, 0.0..=1.5),
+                );
                 f.kinetic_coefficient = f.kinetic_coefficient.min(f.static_coefficient);
                 if f != friction {
                     actions.push(Action::Friction(f));
                 }
             });
+            layout.note("friction", header.header_response);
         }
-        ui.collapsing("display", |ui| {
-            ui.checkbox(&mut options.surface, "surface");
-            ui.checkbox(&mut options.wireframe, "wireframe (W)");
-            ui.checkbox(&mut options.springs, "springs by class");
-            ui.checkbox(&mut options.pattern, "fabric pattern");
-            ui.checkbox(&mut options.pins, "pin markers");
-            ui.checkbox(&mut options.contacts, "contacts (K)");
+        let display = ui.collapsing("display", |ui| {
+            layout.checkbox(ui, &mut options.surface, "surface");
+            layout.checkbox(ui, &mut options.wireframe, "wireframe (W)");
+            layout.checkbox(ui, &mut options.springs, "springs by class");
+            layout.checkbox(ui, &mut options.pattern, "fabric pattern");
+            layout.checkbox(ui, &mut options.pins, "pin markers");
+            layout.checkbox(ui, &mut options.contacts, "contacts (K)");
             ui.horizontal(|ui| {
                 ui.label("camera (C):");
-                ui.selectable_value(mode, CameraMode::Orbit, "orbit");
-                ui.selectable_value(mode, CameraMode::Fly, "fly");
+                layout.note(
+                    "orbit",
+                    ui.selectable_value(mode, CameraMode::Orbit, "orbit"),
+                );
+                layout.note("fly", ui.selectable_value(mode, CameraMode::Fly, "fly"));
             });
-            if ui.button("reset view (Home)").clicked() {
+            if layout.button(ui, "reset view (Home)").clicked() {
                 actions.push(Action::ResetView);
             }
         });
+        layout.note("display", display.header_response);
         ui.separator();
         ui.small(
             "drag cloth: grab · drag: orbit · right/middle drag: pan · wheel: zoom · \
@@ -292,16 +390,22 @@ impl Panel {
     }
 }
 
-fn spring_sliders(ui: &mut egui::Ui, name: &str, p: &mut SpringParams, max_k: f32) {
-    ui.add(
-        egui::Slider::new(&mut p.stiffness, 0.0..=max_k)
-            .logarithmic(true)
-            .text(format!("{name} k [N/m]")),
+fn spring_sliders(
+    layout: &mut Layout,
+    ui: &mut egui::Ui,
+    name: &str,
+    p: &mut SpringParams,
+    max_k: f32,
+) {
+    layout.slider(
+        ui,
+        &format!("{name} k [N/m]"),
+        egui::Slider::new(&mut p.stiffness, 0.0..=max_k).logarithmic(true),
     );
-    ui.add(
-        egui::Slider::new(&mut p.damping, 0.0..=1.0)
-            .logarithmic(true)
-            .text(format!("{name} c [N·s/m]")),
+    layout.slider(
+        ui,
+        &format!("{name} c [N·s/m]"),
+        egui::Slider::new(&mut p.damping, 0.0..=1.0).logarithmic(true),
     );
 }
 
@@ -327,4 +431,64 @@ fn status_block(ui: &mut egui::Ui, s: &Status) {
         ui.colored_label(egui::Color32::from_rgb(255, 120, 90), msg);
     }
     ui.small(&s.adapter);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{CameraMode, Layout, Panel, Status};
+    use crate::renderer::RenderOptions;
+
+    /// Draws `panel` twice (egui sizes its widgets in the first pass) in a 640 × 600 screen.
+    fn draw(panel: &mut Panel) {
+        let ctx = egui::Context::default();
+        let config = cloth_core::SimConfig::default();
+        let mut options = RenderOptions::default();
+        let mut mode = CameraMode::Orbit;
+        let status = Status::default();
+        let raw = egui::RawInput {
+            screen_rect: Some(egui::Rect::from_min_size(
+                egui::Pos2::ZERO,
+                egui::vec2(640.0, 600.0),
+            )),
+            ..egui::RawInput::default()
+        };
+        for _ in 0..2 {
+            let _ = ctx.run_ui(raw.clone(), |ui| {
+                let _ = panel.show(ui, &config, &mut options, &mut mode, &status);
+            });
+        }
+    }
+
+    /// The `CLOTH_VIEW_LAYOUT` hook's record: off, nothing; on, the panel's labelled widgets
+    /// (the run/pause row, the section headers) once each a frame, inside the screen, the
+    /// buttons of one row side by side; nothing while the panel is hidden.
+    #[test]
+    fn the_layout_records_the_widgets_only_when_on() {
+        let scene = crate::scene::SceneKind::builtin("drape").expect("drape");
+        let mut panel = Panel::new(scene, 16, cloth_core::Integrator::Xpbd);
+        draw(&mut panel);
+        assert!(panel.layout.widgets().is_empty());
+
+        panel.layout = Layout::on();
+        draw(&mut panel);
+        let widgets = panel.layout.widgets();
+        let screen = egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(640.0, 600.0));
+        let find = |label: &str| {
+            let found: Vec<_> = widgets.iter().filter(|(l, _)| l == label).collect();
+            assert_eq!(found.len(), 1, "{label}: {widgets:?}");
+            found[0].1
+        };
+        for label in ["pause", "step", "reset", "save scene", "time", "display"] {
+            let r = find(label);
+            assert!(r.is_positive() && screen.contains_rect(r), "{label}: {r:?}");
+        }
+        let (pause, step) = (find("pause"), find("step"));
+        assert!(pause.max.x <= step.min.x && pause.center().y == step.center().y);
+        // a closed section's widgets are not drawn
+        assert!(widgets.iter().all(|(l, _)| l != "wireframe (W)"));
+
+        panel.visible = false;
+        draw(&mut panel);
+        assert!(panel.layout.widgets().is_empty());
+    }
 }
