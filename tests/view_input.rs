@@ -521,15 +521,16 @@ fn keys_mouse_wheel_and_resizes_change_what_the_viewer_shows() {
         number_after(&plain, "orbit at "),
         number_after(after, "orbit at "),
     );
-    // Three wheel lines zoom in by 0.9³; under XTEST each click also comes as an emulated
-    // scroll-valuator motion, which winit (0.30) reports as a second wheel event, so 0.9⁶
-    // (a real wheel under Xorg's libinput sends the valuators and flags the buttons as
-    // emulated, which winit skips: one event a notch). Orbit, pan and fly keep the distance.
+    // Three wheel lines zoom in by 0.9 each; under XTEST a click may also come as an emulated
+    // scroll-valuator motion, which winit (0.30) reports as a second wheel event (a real wheel
+    // under Xorg's libinput sends the valuators and flags the buttons as emulated, which winit
+    // skips: one event a notch). Whether the valuator motion of a click arrives depends on
+    // timing: 0.9⁶ usually, 0.9⁴ in about one run in ten (seen here, and on `c56255c` before
+    // the panel test existed). So each notch zooms by one or two whole steps of 0.9: 0.9³ to
+    // 0.9⁶, never less and never a fraction of a step. Orbit, pan and fly keep the distance.
     assert!(
-        [3, 6]
-            .iter()
-            .any(|&k| (d1 - d0 * 0.9f32.powi(k)).abs() < 0.01 * d0),
-        "three wheel lines zoom by 0.9³ (or 0.9⁶): {d0} -> {d1}"
+        (3..=6).any(|k| (d1 - d0 * 0.9f32.powi(k)).abs() < 0.01 * d0),
+        "three wheel lines zoom by 0.9³ to 0.9⁶ (one or two events a notch): {d0} -> {d1}"
     );
     let (e0, e1) = (eye(&plain), eye(after));
     assert!(
