@@ -203,7 +203,17 @@ impl Viewer {
     }
 
     /// Polls `ready` until it gives a value, failing if the viewer exits or the deadline passes.
-    fn poll<T>(&mut self, what: &str, mut ready: impl FnMut() -> Option<T>) -> T {
+    fn poll<T>(&mut self, what: &str, ready: impl FnMut() -> Option<T>) -> T {
+        self.poll_or(what, ready, String::new)
+    }
+
+    /// As [`Viewer::poll`], with `context()` added to the failure's message.
+    fn poll_or<T>(
+        &mut self,
+        what: &str,
+        mut ready: impl FnMut() -> Option<T>,
+        context: impl Fn() -> String,
+    ) -> T {
         let start = Instant::now();
         loop {
             if let Some(v) = ready() {
@@ -211,13 +221,15 @@ impl Viewer {
             }
             if let Ok(Some(status)) = self.child.try_wait() {
                 panic!(
-                    "cloth view exited ({status}) waiting for {what}: {}",
+                    "cloth view exited ({status}) waiting for {what}: {}{}",
+                    context(),
                     self.log()
                 );
             }
             assert!(
                 start.elapsed() < Duration::from_secs(30),
-                "no {what} after 30 s: {}",
+                "no {what} after 30 s: {}{}",
+                context(),
                 self.log()
             );
             std::thread::sleep(Duration::from_millis(20));
@@ -242,29 +254,14 @@ impl Viewer {
             .layout
             .clone()
             .expect("a viewer started with a layout file");
-        let start = Instant::now();
-        let mut last = String::new();
-        loop {
-            // a missing file (before the first frame) reads as empty
-            last = std::fs::read_to_string(&path).unwrap_or(last);
-            if let Some(layout) = Layout::parse(&last)
-                && ready(&layout)
-            {
-                return layout;
-            }
-            if let Ok(Some(status)) = self.child.try_wait() {
-                panic!(
-                    "cloth view exited ({status}) waiting for {what}: {}",
-                    self.log()
-                );
-            }
-            assert!(
-                start.elapsed() < Duration::from_secs(30),
-                "no {what} after 30 s; the layout file last read:\n{last}\nstderr: {}",
-                self.log()
-            );
-            std::thread::sleep(Duration::from_millis(20));
-        }
+        // a missing file (before the first frame) reads as empty; the file is renamed over,
+        // so a read sees a whole one
+        let read = || std::fs::read_to_string(&path).unwrap_or_default();
+        self.poll_or(
+            what,
+            || Layout::parse(&read()).filter(|l| ready(l)),
+            || format!("the layout file now:\n{}\nstderr: ", read()),
+        )
     }
 
     /// Clicks the panel widget `label` at the centre of where the layout file shows it (once
