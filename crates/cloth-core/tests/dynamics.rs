@@ -15,8 +15,8 @@ use std::f64::consts::TAU;
 
 use cloth_core::glam::Vec3;
 use cloth_core::{
-    ForceSwitches, GridBuilder, Integrator, Mass, Material, SimConfig, Simulation, SpringClass,
-    SpringKind, SpringParams, StepStats,
+    GridBuilder, Integrator, Mass, Material, SimConfig, Simulation, SpringClass, SpringKind,
+    SpringParams, StepStats,
 };
 
 /// The three explicit integrators, named one by one: the laws below are theirs, and
@@ -330,59 +330,25 @@ fn free_fall_follows_each_integrators_exact_discretisation() {
     let substeps = 8_u32;
     let steps = 64_u32;
     for integrator in EXPLICIT {
-        let cloth = GridBuilder::new(4, 4)
-            .size(1.0, 1.0)
-            .origin(Vec3::new(0.0, 1.0, 0.0))
-            .velocity(v0)
-            .mass(Mass::PerParticle(0.125))
-            .build()
-            .unwrap();
         // Forward Euler amplifies the rounding noise of the spring lengths unless every mode's
         // dashpot damping beats its (ωh)² energy gain, which needs c/k > h for each kind: the
         // default 500 N/m with 0.1 N·s/m does not (strains grow to ~2·10⁻⁴ within 1 s), a
         // 40 N/m fabric does. The symplectic integrators keep the stiff default material.
         let material = if integrator == Integrator::ForwardEuler {
-            Material::isotropic(
-                SpringParams::new(40.0, 0.1),
-                SpringParams::new(10.0, 0.1),
-                SpringParams::new(2.0, 0.1),
-            )
+            SOFT_FABRIC
         } else {
             Material::default()
         };
-        let config = SimConfig {
-            dt: 1.0 / 64.0,
-            substeps,
-            integrator,
-            material,
-            forces: ForceSwitches {
-                damping: false,
-                air: false,
-                ..ForceSwitches::default()
-            },
-            ..SimConfig::default()
-        };
-        let g = -f64::from(config.gravity.y);
-        let h = f64::from(config.substep_dt());
-        assert_eq!(h, 1.0 / 512.0);
-        let mut sim = Simulation::new(cloth, config).unwrap();
-        let start: Vec<Vec3> = sim.particles().position.clone();
+        let mut sim = thrown_cloth(v0, integrator, substeps, material);
+        assert_eq!(sim.config().substep_dt(), 1.0 / 512.0);
         let com0 = com(&sim);
-        let mut max_y: f64 = 1.0;
         let mut max_strain: f64 = 0.0;
         let mut max_stat_strain: f32 = 0.0;
-        for _ in 0..steps {
-            let s = sim.step().unwrap();
+        let fall = FreeFall::run(&mut sim, steps, |sim, s| {
             max_stat_strain = max_stat_strain.max(s.strain(SpringClass::Structural));
-            max_y = sim
-                .particles()
-                .position
-                .iter()
-                .fold(max_y, |a, p| a.max(f64::from(p.y.abs())));
-            max_strain = max_strain.max(abs_strain(&sim));
-        }
-        let n = f64::from(steps * substeps);
-        let t = n * h;
+            max_strain = max_strain.max(abs_strain(sim));
+        });
+        let (n, h, g, t) = (fall.n, fall.h, fall.g, fall.t());
         let continuous = f64::from(v0.y) * t - 0.5 * g * t * t;
         let expected = match integrator {
             Integrator::Verlet => continuous,
@@ -390,17 +356,9 @@ fn free_fall_follows_each_integrators_exact_discretisation() {
             Integrator::ForwardEuler => f64::from(v0.y) * t - g * h * h * n * (n - 1.0) / 2.0,
             other => unreachable!("{other:?}"),
         };
-        let max_v = (f64::from(v0.y) - g * t).abs().max(f64::from(v0.length()));
-        let tol = n * EPS32 * (2.0 * max_y + t * max_v);
+        let tol = fall.rounding_bound(v0);
         let dcom = com(&sim) - com0;
-        let mut worst: f64 = 0.0;
-        for (p, p0) in sim.particles().position.iter().zip(&start) {
-            let d = p.as_dvec3() - p0.as_dvec3();
-            worst = worst
-                .max((d.y - expected).abs())
-                .max((d.x - f64::from(v0.x) * t).abs())
-                .max((d.z - f64::from(v0.z) * t).abs());
-        }
+        let worst = fall.worst_particle_error(&sim, v0, expected);
         eprintln!(
             "{:>16}: Δy_com = {:.9} m, expected {expected:.9} m (continuous {continuous:.9}, \
              ½ght = {:.3e}); com err {:.2e}, worst particle err {worst:.2e}, tol {tol:.2e}; \

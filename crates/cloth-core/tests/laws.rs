@@ -65,55 +65,20 @@ fn free_fall_of_implicit_euler_and_xpbd_is_symplectic_euler_s_discretisation() {
     let v0 = Vec3::new(0.3, 2.0, -0.5);
     let steps = 64_u32;
     for (integrator, substeps) in [(Integrator::ImplicitEuler, 8), (Integrator::Xpbd, 1)] {
-        let cloth = GridBuilder::new(4, 4)
-            .size(1.0, 1.0)
-            .origin(Vec3::new(0.0, 1.0, 0.0))
-            .velocity(v0)
-            .mass(Mass::PerParticle(0.125))
-            .build()
-            .unwrap();
-        let config = SimConfig {
-            dt: 1.0 / 64.0,
-            substeps,
-            integrator,
-            forces: ForceSwitches {
-                damping: false,
-                air: false,
-                ..ForceSwitches::default()
-            },
-            ..SimConfig::default()
-        };
-        let g = -f64::from(config.gravity.y);
-        let h = f64::from(config.substep_dt());
-        assert_eq!(h, 1.0 / (64.0 * f64::from(substeps)));
-        let mut sim = Simulation::new(cloth, config).unwrap();
-        let start = sim.particles().position.clone();
-        let mut max_y: f64 = 1.0;
-        for _ in 0..steps {
-            sim.step().unwrap();
-            max_y = sim
-                .particles()
-                .position
-                .iter()
-                .fold(max_y, |a, p| a.max(f64::from(p.y.abs())));
-        }
-        let n = f64::from(steps * substeps);
-        let t = n * h;
+        let mut sim = thrown_cloth(v0, integrator, substeps, Material::default());
+        assert_eq!(
+            f64::from(sim.config().substep_dt()),
+            1.0 / (64.0 * f64::from(substeps))
+        );
+        let fall = FreeFall::run(&mut sim, steps, |_, _| {});
+        let (n, h, g, t, max_y) = (fall.n, fall.h, fall.g, fall.t(), fall.max_y);
         let expected = f64::from(v0.y) * t - g * h * h * n * (n + 1.0) / 2.0;
-        let max_v = (f64::from(v0.y) - g * t).abs().max(f64::from(v0.length()));
-        let mut tol = n * EPS32 * (2.0 * max_y + t * max_v);
+        let mut tol = fall.rounding_bound(v0);
         if integrator == Integrator::Xpbd {
             let ulp = f64::from(f32::EPSILON) * 2f64.powf(max_y.log2().floor());
             tol += ulp * n * (n + 1.0);
         }
-        let mut worst: f64 = 0.0;
-        for (p, p0) in sim.particles().position.iter().zip(&start) {
-            let d = p.as_dvec3() - p0.as_dvec3();
-            worst = worst
-                .max((d.y - expected).abs())
-                .max((d.x - f64::from(v0.x) * t).abs())
-                .max((d.z - f64::from(v0.z) * t).abs());
-        }
+        let worst = fall.worst_particle_error(&sim, v0, expected);
         eprintln!(
             "{:>16}: expected Δy {expected:.9} m (½ght = {:.3e}), worst particle error \
              {worst:.2e} m, tolerance {tol:.2e} m, max strain {:.1e}",

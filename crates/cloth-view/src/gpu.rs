@@ -144,6 +144,9 @@ pub struct WindowSurface {
     max_side: u32,
     /// The last texture was suboptimal: configure again before taking the next one.
     stale: bool,
+    /// The window is larger than the surface ([`surface_size`] clamped it): its textures stay
+    /// suboptimal however often the surface is configured.
+    clamped: bool,
 }
 
 /// Most pixels a window is drawn at (4096 × 4096): its multisampled colour and depth targets
@@ -190,9 +193,10 @@ impl WindowSurface {
         height: u32,
     ) -> Result<Self, GpuError> {
         let max_side = gpu.device.limits().max_texture_dimension_2d;
-        let [width, height] = surface_size(width, height, max_side);
+        let drawn = surface_size(width, height, max_side);
+        let clamped = drawn != [width.max(1), height.max(1)];
         let mut config = surface
-            .get_default_config(&gpu.adapter, width, height)
+            .get_default_config(&gpu.adapter, drawn[0], drawn[1])
             .ok_or_else(|| GpuError::Surface("the adapter cannot present to it".into()))?;
         let caps = surface.get_capabilities(&gpu.adapter);
         if let Some(srgb) = caps
@@ -210,6 +214,7 @@ impl WindowSurface {
             config,
             max_side,
             stale: false,
+            clamped,
         })
     }
 
@@ -218,7 +223,9 @@ impl WindowSurface {
     /// at, `[config.width, config.height]`.
     pub fn resize(&mut self, gpu: &Gpu, width: u32, height: u32) -> [u32; 2] {
         if width > 0 && height > 0 {
-            [self.config.width, self.config.height] = surface_size(width, height, self.max_side);
+            let drawn = surface_size(width, height, self.max_side);
+            self.clamped = drawn != [width, height];
+            [self.config.width, self.config.height] = drawn;
             self.surface.configure(&gpu.device, &self.config);
             self.stale = false;
         }
@@ -234,8 +241,10 @@ impl WindowSurface {
             wgpu::CurrentSurfaceTexture::Success(t) => Frame::Ready(t),
             wgpu::CurrentSurfaceTexture::Suboptimal(t) => {
                 // Draw this one and reconfigure before the next: configuring while `t` is
-                // alive is a validation error (a panic), which a resize could trigger.
-                self.stale = true;
+                // alive is a validation error (a panic), which a resize could trigger. A
+                // clamped surface is suboptimal by design: configuring it again every frame
+                // would change nothing.
+                self.stale = !self.clamped;
                 Frame::Ready(t)
             }
             wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
