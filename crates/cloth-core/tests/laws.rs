@@ -15,7 +15,7 @@ use std::f64::consts::TAU;
 use cloth_core::glam::{DVec3, Quat, Vec3};
 use cloth_core::{
     Collider, ForceSwitches, Friction, GridBuilder, Integrator, Mass, Material, SimConfig,
-    Simulation, SpringKind, SpringParams,
+    Simulation, SpringParams,
 };
 
 /// Total momentum Σm·v in f64.
@@ -104,33 +104,8 @@ fn free_fall_of_implicit_euler_and_xpbd_is_symplectic_euler_s_discretisation() {
 /// its force is exactly linear in the extension. Row 1 is unstretched and stays at rest. One
 /// substep of `h` per step; nothing else acts.
 fn pinned_oscillator(m: f32, k: f32, h: f32, integrator: Integrator, stretch: f32) -> Simulation {
-    let mut cloth = GridBuilder::new(2, 2)
-        .spacing(1.0, 1.0)
-        .mass(Mass::PerParticle(1.0))
-        .build()
-        .unwrap();
-    cloth.particles.mass[1] = m;
-    cloth.particles.inv_mass[1] = 1.0 / m;
-    let rest = cloth.topology.springs_of(SpringKind::Weft)[0].rest_length;
-    assert_eq!(rest, 1.0, "the 0–1 spring should be exactly 1 m long");
-    let config = SimConfig {
-        dt: h,
-        substeps: 1,
-        integrator,
-        material: Material {
-            warp: OFF,
-            weft: SpringParams::new(k, 0.0),
-            shear: OFF,
-            bend: OFF,
-        },
-        forces: internal_forces_only(),
-        ..SimConfig::default()
-    };
-    let mut sim = Simulation::new(cloth, config).unwrap();
+    let mut sim = oscillator(1.0, m, k, 0.0, h, integrator, stretch);
     sim.pin(0).unwrap();
-    let x1 = sim.particles().position[1];
-    sim.set_position(1, x1 + Vec3::new(stretch, 0.0, 0.0))
-        .unwrap();
     sim
 }
 

@@ -2,7 +2,9 @@
 #![allow(dead_code)]
 
 use cloth_core::glam::{DVec3, Quat, Vec3};
-use cloth_core::{ForceSwitches, GridBuilder, Mass, Material, SimConfig, Simulation, SpringParams};
+use cloth_core::{
+    ForceSwitches, GridBuilder, Mass, Material, SimConfig, Simulation, SpringKind, SpringParams,
+};
 
 /// Largest |(|L| − L0)/L0| over all springs (compression included), in f64.
 pub fn abs_strain(sim: &Simulation) -> f64 {
@@ -274,4 +276,48 @@ impl FreeFall {
         }
         worst
     }
+}
+
+/// A two-particle oscillator: a 2×2 grid, 1 m × 1 m, with only weft springs (stiffness `k`,
+/// dashpot `c`); particle 0 has mass `m_a`, particle 1 mass `m_b`, and particle 1 is moved
+/// `stretch` metres along +x (the rest length 0–1 is exactly 1 m). One substep per step of
+/// length `h`. Nothing else acts.
+pub fn oscillator(
+    m_a: f32,
+    m_b: f32,
+    k: f32,
+    c: f32,
+    h: f32,
+    integrator: cloth_core::Integrator,
+    stretch: f32,
+) -> Simulation {
+    let mut cloth = GridBuilder::new(2, 2)
+        .spacing(1.0, 1.0)
+        .mass(Mass::PerParticle(1.0))
+        .build()
+        .unwrap();
+    for (i, m) in [(0, m_a), (1, m_b)] {
+        cloth.particles.mass[i] = m;
+        cloth.particles.inv_mass[i] = 1.0 / m;
+    }
+    let rest = cloth.topology.springs_of(SpringKind::Weft)[0].rest_length;
+    assert_eq!(rest, 1.0, "the 0–1 spring should be exactly 1 m long");
+    let config = SimConfig {
+        dt: h,
+        substeps: 1,
+        integrator,
+        material: Material {
+            warp: OFF,
+            weft: SpringParams::new(k, c),
+            shear: OFF,
+            bend: OFF,
+        },
+        forces: internal_forces_only(),
+        ..SimConfig::default()
+    };
+    let mut sim = Simulation::new(cloth, config).unwrap();
+    let x1 = sim.particles().position[1];
+    sim.set_position(1, x1 + Vec3::new(stretch, 0.0, 0.0))
+        .unwrap();
+    sim
 }
