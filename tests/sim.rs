@@ -265,6 +265,7 @@ fn report_has_its_documented_fields() {
         "kernel",
         "final_structural_strain",
         "final_shear_strain",
+        "solver_unconverged_frames",
         "status",
     ] {
         assert!(!r[key].is_null(), "missing {key}");
@@ -312,6 +313,61 @@ fn report_has_its_documented_fields() {
             .expect("scene")
             .contains("kind = \"implicit-euler\"")
     );
+}
+
+/// A run in which implicit Euler's CG stops at its iteration cap says so: with a cap of 2
+/// iterations the 24² drape's solves in contact do not reach the tolerance, and the run (exit
+/// 0: the steps are taken) warns on standard error with the cap, the count of such frames, the
+/// first one and the key to raise; the report's `solver_unconverged_frames` is that count, the
+/// number of `frames[]` whose `solver_converged` is false. With the default cap (200) every
+/// solve converges: no warning, and 0.
+#[test]
+fn a_capped_linear_solve_is_reported() {
+    let guard = tmp("capped");
+    let rep = guard.path().join("r.json");
+    let run = |cap: &str| {
+        let (code, out, err) = cloth(&[
+            "sim",
+            "drape",
+            "--frames",
+            "40",
+            "--resolution",
+            "24",
+            "--integrator",
+            "implicit-euler",
+            "--set",
+            &format!("solver.implicit.max_iterations={cap}"),
+            "--report",
+            s(&rep),
+        ]);
+        assert_eq!(code, 0, "{err}");
+        assert!(out.contains("status ok"), "{out}");
+        let r = report(&rep);
+        let frames = r["frames"].as_array().expect("frames").clone();
+        let capped = frames
+            .iter()
+            .filter(|f| f["solver_converged"] == false)
+            .count();
+        let first = frames
+            .iter()
+            .find(|f| f["solver_converged"] == false)
+            .map(|f| f["frame"].as_u64().expect("frame"));
+        assert_eq!(r["solver_unconverged_frames"], capped as u64);
+        (err, capped, first)
+    };
+    let (err, capped, first) = run("2");
+    let first = first.expect("a capped frame");
+    assert!(capped > 0 && capped <= 40);
+    for needle in [
+        "warning: implicit Euler's linear solve stopped at its cap of 2 CG iterations".to_owned(),
+        format!("in {capped} of 40 frames (the first: frame {first};"),
+        "raise solver.implicit.max_iterations".to_owned(),
+    ] {
+        assert!(err.contains(&needle), "{needle:?} not in {err}");
+    }
+    let (err, capped, _) = run("200");
+    assert_eq!(capped, 0);
+    assert!(!err.contains("warning"), "{err}");
 }
 
 /// The report's `final_structural_strain` and `final_shear_strain` are the strains of the last

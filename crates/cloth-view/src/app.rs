@@ -139,6 +139,9 @@ struct World {
     paused: bool,
     message: Option<String>,
     sim_ms: f32,
+    /// Simulated time of the last step whose linear solve stopped at its iteration cap
+    /// (implicit Euler), for the status block ([`capped_recently`]).
+    capped_at: Option<f64>,
 }
 
 impl World {
@@ -154,6 +157,7 @@ impl World {
             paused: false,
             message: None,
             sim_ms: 0.0,
+            capped_at: None,
         })
     }
 
@@ -170,6 +174,7 @@ impl World {
                     self.message = Some(format!("kept the scene's settings: {e}"));
                 }
                 self.sim = sim;
+                self.capped_at = None;
             }
             Err(e) => self.message = Some(e.to_string()),
         }
@@ -189,7 +194,12 @@ impl World {
                 .set_pin_target(i, at + (target - at).clamp_length_max(reach));
         }
         match self.sim.step() {
-            Ok(_) => true,
+            Ok(stats) => {
+                if !stats.solver.converged {
+                    self.capped_at = Some(stats.time);
+                }
+                true
+            }
             Err(e) => {
                 let msg = e.to_string();
                 eprintln!("cloth: {msg}");
@@ -661,6 +671,7 @@ impl App {
             max_strain: stats.max_strain.iter().copied().fold(0.0, f32::max),
             paused: self.world.paused,
             behind: self.world.stepper.behind(),
+            solver_capped: capped_recently(self.world.capped_at, sim.time()),
             message: self.world.message.clone(),
             adapter: gpu.adapter_name(),
             friction: sim.colliders().first().map(|c| c.friction),
@@ -1013,6 +1024,17 @@ impl ApplicationHandler for App {
 /// smoothed `previous`, per step of the scene's dt (a "frame" as `cloth sim` counts and reports
 /// them), not per drawn frame, which runs as many steps as are due: none (kept as it was) or
 /// several (divided among them). The first sample is taken as it is.
+/// Whether the status block says the linear solve was capped: a step capped within the last
+/// [`CAPPED_HOLD`] of simulated time before `now` (`capped_at`: that step's time). Held, not
+/// per step, so that a landing whose solves alternate between capped and converged does not
+/// make the panel's lines jump every frame.
+fn capped_recently(capped_at: Option<f64>, now: f64) -> bool {
+    capped_at.is_some_and(|t| t <= now && now - t < CAPPED_HOLD)
+}
+
+/// How long (simulated seconds) the status block keeps saying a step's solve was capped.
+const CAPPED_HOLD: f64 = 1.0;
+
 fn step_ms(previous: f32, elapsed_ms: f32, steps: u32) -> f32 {
     if steps == 0 {
         return previous;
@@ -1027,6 +1049,18 @@ fn step_ms(previous: f32, elapsed_ms: f32, steps: u32) -> f32 {
 
 #[cfg(test)]
 mod tests {
+    /// The status block says "capped" for [`super::CAPPED_HOLD`] of simulated time after a
+    /// capped step and not before it, nor after a reset took the time back below it.
+    #[test]
+    fn a_capped_solve_is_said_for_a_second() {
+        use super::capped_recently;
+        assert!(!capped_recently(None, 3.0));
+        assert!(capped_recently(Some(2.0), 2.0));
+        assert!(capped_recently(Some(2.0), 2.9));
+        assert!(!capped_recently(Some(2.0), 3.0));
+        assert!(!capped_recently(Some(2.0), 1.5));
+    }
+
     /// Without a display, `cloth view` said "no display to open a window on (os error at
     /// /root/.cargo/registry/src/…/winit-0.30.13/src/platform_impl/linux/mod.rs:765: …)": a
     /// build path. The message names only what to do.

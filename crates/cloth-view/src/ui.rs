@@ -68,6 +68,9 @@ pub struct Status {
     pub paused: bool,
     /// The simulation runs slower than real time.
     pub behind: bool,
+    /// Implicit Euler's linear solve stopped at its iteration cap before its tolerance in the
+    /// last step (the step was taken, less accurately than the tolerance asks).
+    pub solver_capped: bool,
     /// The last instability or parameter error.
     pub message: Option<String>,
     /// The graphics adapter.
@@ -409,6 +412,10 @@ fn spring_sliders(
     );
 }
 
+/// What the status block says when the last step's linear solve stopped at its cap.
+pub const CAPPED_TEXT: &str =
+    "CG stopped at its iteration cap: step approximate (more substeps or a higher cap)";
+
 fn status_block(ui: &mut egui::Ui, s: &Status) {
     ui.monospace(format!(
         "{:.1} fps, sim {:.1} ms/frame\nt = {:.3} s{}\n{} particles, {} springs\nE = {:+.4e} J\nmax strain {:.4}",
@@ -427,6 +434,9 @@ fn status_block(ui: &mut egui::Ui, s: &Status) {
         s.energy,
         s.max_strain,
     ));
+    if s.solver_capped {
+        ui.colored_label(egui::Color32::from_rgb(255, 200, 90), CAPPED_TEXT);
+    }
     if let Some(msg) = &s.message {
         ui.colored_label(egui::Color32::from_rgb(255, 120, 90), msg);
     }
@@ -440,11 +450,16 @@ mod tests {
 
     /// Draws `panel` twice (egui sizes its widgets in the first pass) in a 640 × 600 screen.
     fn draw(panel: &mut Panel) {
+        let _ = draw_with(panel, &Status::default());
+    }
+
+    /// [`draw`] with `status`; returns the text of the last pass's text shapes.
+    fn draw_with(panel: &mut Panel, status: &Status) -> Vec<String> {
         let ctx = egui::Context::default();
         let config = cloth_core::SimConfig::default();
         let mut options = RenderOptions::default();
         let mut mode = CameraMode::Orbit;
-        let status = Status::default();
+        let mut texts = Vec::new();
         let raw = egui::RawInput {
             screen_rect: Some(egui::Rect::from_min_size(
                 egui::Pos2::ZERO,
@@ -454,12 +469,39 @@ mod tests {
         };
         for _ in 0..2 {
             let mut output = ctx.run_ui(raw.clone(), |ui| {
-                let _ = panel.show(ui, &config, &mut options, &mut mode, &status);
+                let _ = panel.show(ui, &config, &mut options, &mut mode, status);
             });
             // No renderer takes the font atlas here: epaint's debug builds panic on dropping
             // texture updates nobody applied.
             output.textures_delta.clear();
+            texts = output
+                .shapes
+                .iter()
+                .filter_map(|c| match &c.shape {
+                    egui::Shape::Text(t) => Some(t.galley.text().to_owned()),
+                    _ => None,
+                })
+                .collect();
         }
+        texts
+    }
+
+    /// The status block says when the last step's linear solve stopped at its iteration cap
+    /// (implicit Euler's CG), and says nothing of it otherwise.
+    #[test]
+    fn the_status_block_says_when_the_solve_was_capped() {
+        let scene = crate::scene::SceneKind::builtin("drape").expect("drape");
+        let mut panel = Panel::new(scene, 16, cloth_core::Integrator::ImplicitEuler);
+        let capped = Status {
+            solver_capped: true,
+            ..Status::default()
+        };
+        let said = |texts: &[String]| texts.iter().any(|t| t == super::CAPPED_TEXT);
+        let texts = draw_with(&mut panel, &capped);
+        assert!(said(&texts), "{texts:?}");
+        let texts = draw_with(&mut panel, &Status::default());
+        assert!(!said(&texts), "{texts:?}");
+        assert!(texts.iter().any(|t| t.contains("fps")), "{texts:?}");
     }
 
     /// The `CLOTH_VIEW_LAYOUT` hook's record: off, nothing; on, the panel's labelled widgets
