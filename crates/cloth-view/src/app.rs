@@ -1020,10 +1020,6 @@ impl ApplicationHandler for App {
     }
 }
 
-/// The status line's simulation time: `elapsed_ms` spent on `steps` steps folded into the
-/// smoothed `previous`, per step of the scene's dt (a "frame" as `cloth sim` counts and reports
-/// them), not per drawn frame, which runs as many steps as are due: none (kept as it was) or
-/// several (divided among them). The first sample is taken as it is.
 /// Whether the status block says the linear solve was capped: a step capped within the last
 /// [`CAPPED_HOLD`] of simulated time before `now` (`capped_at`: that step's time). Held, not
 /// per step, so that a landing whose solves alternate between capped and converged does not
@@ -1035,6 +1031,10 @@ fn capped_recently(capped_at: Option<f64>, now: f64) -> bool {
 /// How long (simulated seconds) the status block keeps saying a step's solve was capped.
 const CAPPED_HOLD: f64 = 1.0;
 
+/// The status line's simulation time: `elapsed_ms` spent on `steps` steps folded into the
+/// smoothed `previous`, per step of the scene's dt (a "frame" as `cloth sim` counts and reports
+/// them), not per drawn frame, which runs as many steps as are due: none (kept as it was) or
+/// several (divided among them). The first sample is taken as it is.
 fn step_ms(previous: f32, elapsed_ms: f32, steps: u32) -> f32 {
     if steps == 0 {
         return previous;

@@ -68,8 +68,9 @@ pub struct Status {
     pub paused: bool,
     /// The simulation runs slower than real time.
     pub behind: bool,
-    /// Implicit Euler's linear solve stopped at its iteration cap before its tolerance in the
-    /// last step (the step was taken, less accurately than the tolerance asks).
+    /// Implicit Euler's linear solve stopped at its iteration cap before its tolerance in a
+    /// step within the last simulated second (such a step is taken, less accurately than the
+    /// tolerance asks).
     pub solver_capped: bool,
     /// The last instability or parameter error.
     pub message: Option<String>,
@@ -412,7 +413,7 @@ fn spring_sliders(
     );
 }
 
-/// What the status block says when the last step's linear solve stopped at its cap.
+/// What the status block says while the linear solve stops at its cap ([`Status::solver_capped`]).
 pub const CAPPED_TEXT: &str =
     "CG stopped at its iteration cap: step approximate (more substeps or a higher cap)";
 
