@@ -13,11 +13,15 @@ rows-columns-rows (symmetric multiplicative), the additive rows + columns - diag
 geometric multigrid V-cycle (bilinear prolongation, Galerkin coarse operators, damped
 block-Jacobi smoothing).
 
-Usage: scripts/implicit-preconditioners.py [N]   (default 64)
+With `filter` the system is the CG's filtered one, S·A·S + (I − S), with the particles on
+the ball's cap held along its normal (S = I − n·nᵀ there), as implicit Euler's contacts
+are; the line preconditioners are then skipped (forty-seventh round).
+
+Usage: scripts/implicit-preconditioners.py [N [H [filter]]]   (default 64, 1/120 s)
 """
 import numpy as np, scipy.sparse as sp, scipy.sparse.linalg as sla, sys
 N = int(sys.argv[1]) if len(sys.argv) > 1 else 64
-h = 1/120; size = 1.2; dens = 0.2
+h = float(sys.argv[2]) if len(sys.argv) > 2 else 1/120; size = 1.2; dens = 0.2
 m = dens*size*size/(N*N)
 sp_ = size/(N-1)
 ks = dict(warp=(400,0.02), weft=(400,0.02), shear=(80,0.01), bend=(10,0.005))
@@ -58,6 +62,18 @@ for i in range(n):
     add(i,i,m*np.eye(3))
 A = sp.csr_matrix((vals,(rows_,cols_)),shape=(3*n,3*n))
 b = rng.normal(0,1,3*n)*m  # rhs scale
+FILTER = len(sys.argv) > 3 and sys.argv[3] == 'filter'
+if FILTER:
+    proj = []
+    for i in range(n):
+        if np.hypot(P[i,0], P[i,2]) < R:
+            nrm = P[i]/np.linalg.norm(P[i]); proj.append(np.eye(3) - np.outer(nrm, nrm))
+        else:
+            proj.append(np.eye(3))
+    S = sp.block_diag(proj).tocsr()
+    A = (S @ A @ S + (sp.eye(3*n) - S @ S)).tocsr()
+    b = S @ b
+    print('filtered particles', sum(np.hypot(P[i,0], P[i,2]) < R for i in range(n)), 'of', n)
 def pcg(A, b, Minv, tol=1e-3, maxit=1000):
     x = np.zeros_like(b); r = b.copy(); s = Minv(r); c = s.copy()
     d0 = b @ Minv(b); d = r @ s; it = 0
@@ -76,16 +92,18 @@ def keep(pred):
     return sp.csr_matrix((Acoo.data[mask], (Acoo.row[mask], Acoo.col[mask])), shape=A.shape)
 same_i = lambda a, b: (a//N) == (b//N)
 same_j = lambda a, b: (a%N) == (b%N)
-Ti = keep(same_i).tocsc(); Tj = keep(same_j).tocsc()
-fi = sla.splu(Ti); fj = sla.splu(Tj)
-print('rows (weft lines)', pcg(A, b, fi.solve))
-print('cols (warp lines)', pcg(A, b, fj.solve))
-# symmetric multiplicative: x = Ti^-1 r; x += Tj^-1 (r - A x); x += Ti^-1 (r - A x)
-def sym(r):
-    x = fi.solve(r); x = x + fj.solve(r - A@x); x = x + fi.solve(r - A@x); return x
-print('rows-cols-rows', pcg(A, b, sym))
-# additive: Ti^-1 + Tj^-1 - D^-1
-print('additive', pcg(A, b, lambda r: fi.solve(r)+fj.solve(r)-Dinv@r))
+if not FILTER:
+    Ti = keep(same_i).tocsc(); Tj = keep(same_j).tocsc()
+    fi = sla.splu(Ti); fj = sla.splu(Tj)
+    print('rows (weft lines)', pcg(A, b, fi.solve))
+    print('cols (warp lines)', pcg(A, b, fj.solve))
+    # symmetric multiplicative: x = Ti^-1 r; x += Tj^-1 (r - A x); x += Ti^-1 (r - A x)
+    def sym(r):
+        x = fi.solve(r); x = x + fj.solve(r - A@x); x = x + fi.solve(r - A@x); return x
+    print('rows-cols-rows', pcg(A, b, sym))
+    # additive: Ti^-1 + Tj^-1 - D^-1
+    print('additive', pcg(A, b, lambda r: fi.solve(r)+fj.solve(r)-Dinv@r))
+
 # geometric multigrid V-cycle preconditioner: bilinear prolongation on the grid, Galerkin
 # coarse operators, damped block-Jacobi smoothing (symmetric: nu pre, nu post).
 def prolong(Nf):
