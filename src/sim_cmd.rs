@@ -1049,6 +1049,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
         q.as_ref()
             .map(|q| serde_json::json!({ "p50": q[0], "p99": q[1], "p99_9": q[2], "max": q[3] }))
     };
+    let capped = CappedSolves::of(&records);
     if let Some(path) = &args.report {
         let report = serde_json::json!({
             "format": "cloth-report-1",
@@ -1068,7 +1069,7 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
             "median_frame_ms": median_frame.map(|t| 1e3 * t),
             "median_frame_particle_substeps_per_second": median_throughput,
             "status": status_json,
-            "solver_unconverged_frames": records.iter().filter(|r| !r.solver_converged).count(),
+            "solver_unconverged_frames": capped.as_ref().map_or(0, |c| c.frames),
             "final_structural_strain": json(&strains[0].1),
             "final_shear_strain": json(&strains[1].1),
         });
@@ -1106,8 +1107,8 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
             "self-contact: at most {max_self_intersections} intersecting triangle pairs in a frame"
         );
     }
-    if let Some(line) = unconverged_warning(&records, &cfg) {
-        eprintln!("{line}");
+    if let Some(capped) = &capped {
+        eprintln!("{}", capped.warning(records.len(), &cfg));
     }
     if let Status::Unstable { .. } = status {
         eprintln!("error: the simulation became unstable: {status_line}");
@@ -1115,27 +1116,52 @@ fn run_on_pool(args: &SimArgs) -> Result<ExitCode> {
     Ok(code)
 }
 
-/// The warning for a run in which implicit Euler's linear solve stopped at its iteration cap
-/// before reaching its tolerance in some frames (`None` when every frame's solve converged):
-/// those steps were taken, but less accurately than the tolerance asks (at one substep per
-/// frame the CG reaches its cap of 200 while the `drape` lands, and the landing's strain peaks
-/// higher than with the solve converged), so the run says how many and what to change.
-fn unconverged_warning(records: &[FrameRecord], cfg: &SimConfig) -> Option<String> {
-    let mut capped = records.iter().filter(|r| !r.solver_converged);
-    let first = capped.next()?;
-    let (count, residual) = capped.fold((1usize, first.solver_residual), |(n, r), rec| {
-        (n + 1, r.max(rec.solver_residual))
-    });
-    Some(format!(
-        "warning: implicit Euler's linear solve stopped at its cap of {} CG iterations \
-         before its tolerance {:e} in {count} of {} frames (the first: frame {}; largest \
-         residual {residual:.2e}): those steps are approximate; raise \
-         solver.implicit.max_iterations (1 ..= 4294967295) or solver.substeps",
-        cfg.implicit.max_iterations,
-        cfg.implicit.tolerance,
-        records.len(),
-        first.frame,
-    ))
+/// The frames of a run in which implicit Euler's linear solve stopped at its iteration cap
+/// before reaching its tolerance (`frames[].solver_converged` false). Those steps were taken,
+/// but less accurately than the tolerance asks (at one substep per frame the CG reaches its
+/// cap of 200 while the `drape` lands, and the landing's strain peaks higher than with the
+/// solve converged), so the report counts them and the run warns.
+struct CappedSolves {
+    /// How many frames.
+    frames: usize,
+    /// The first of them.
+    first: u64,
+    /// The largest final residual among them.
+    residual: f32,
+}
+
+impl CappedSolves {
+    /// `None` when every frame's solve converged.
+    fn of(records: &[FrameRecord]) -> Option<Self> {
+        let mut capped = records.iter().filter(|r| !r.solver_converged);
+        let first = capped.next()?;
+        let mut out = Self {
+            frames: 1,
+            first: first.frame,
+            residual: first.solver_residual,
+        };
+        for r in capped {
+            out.frames += 1;
+            out.residual = out.residual.max(r.solver_residual);
+        }
+        Some(out)
+    }
+
+    /// The warning: the cap, how many of the run's `total` frames, the first, the largest
+    /// residual and what to raise.
+    fn warning(&self, total: usize, cfg: &SimConfig) -> String {
+        format!(
+            "warning: implicit Euler's linear solve stopped at its cap of {} CG iterations \
+             before its tolerance {:e} in {} of {total} frames (the first: frame {}; largest \
+             residual {:.2e}): those steps are approximate; raise \
+             solver.implicit.max_iterations (1 ..= 4294967295) or solver.substeps",
+            cfg.implicit.max_iterations,
+            cfg.implicit.tolerance,
+            self.frames,
+            self.first,
+            self.residual,
+        )
+    }
 }
 
 /// The machine a run's timings come from: the CPU's model name (from `/proc/cpuinfo`; `null`

@@ -420,15 +420,23 @@ fn tools() -> bool {
         && common::have("xdotool", "xdotool", "the viewer's input")
 }
 
+/// What every test here starts with, once the tools are there ([`tools`]: `None` skips
+/// loudly outside CI, and in CI a missing tool fails): a temporary directory, a virtual
+/// display and the test's start time.
+fn session() -> Option<(tempfile::TempDir, Xvfb, Instant)> {
+    if !tools() {
+        return None;
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    Some((dir, Xvfb::start(), Instant::now()))
+}
+
 /// Every documented control of the drape, against a run without input.
 #[test]
 fn keys_mouse_wheel_and_resizes_change_what_the_viewer_shows() {
-    if !tools() {
+    let Some((dir, x, started)) = session() else {
         return;
-    }
-    let dir = tempfile::tempdir().expect("temp dir");
-    let x = Xvfb::start();
-    let started = Instant::now();
+    };
 
     // without input: Esc at once
     let plain_png = dir.path().join("plain.png");
@@ -570,12 +578,9 @@ fn keys_mouse_wheel_and_resizes_change_what_the_viewer_shows() {
 /// contacts overlay on the self-colliding pile, resizes and unmapping in a loop.
 #[test]
 fn hostile_input_never_panics_hangs_or_shows_nan() {
-    if !tools() {
+    let Some((dir, x, started)) = session() else {
         return;
-    }
-    let dir = tempfile::tempdir().expect("temp dir");
-    let x = Xvfb::start();
-    let started = Instant::now();
+    };
     let png = dir.path().join("hostile.png");
     let mut v = Viewer::start(&x, dir.path(), "pile", &png);
     let w = v.window.clone();
@@ -667,12 +672,9 @@ const DRAPE_DT: f32 = 1.0 / 60.0;
 /// while an earlier one is still unhandled (egui reports one click of a button a frame).
 #[test]
 fn clicks_on_the_panel_pause_step_reset_and_toggle_the_display() {
-    if !tools() {
+    let Some((dir, x, started)) = session() else {
         return;
-    }
-    let dir = tempfile::tempdir().expect("temp dir");
-    let x = Xvfb::start();
-    let started = Instant::now();
+    };
     let png = dir.path().join("panel.png");
     let layout_file = dir.path().join("layout.txt");
     // 600 px high: the open display section fits (in 400, its last widgets are scrolled out
