@@ -1382,7 +1382,7 @@ pub(crate) fn xpbd_quads(
                 &mut z[first..][..n],
             ];
             let prev = prev.map(|p| &p[g..][..n]);
-            let (w, rest, m) = (&w[g..][..n], &rest[g..][..n], m - first);
+            let (w, rest, m) = (&w[g..][..n], &rest[shared.rest_slot(g)..][..n], m - first);
             if kernel == Kernel::Avx512 {
                 // SAFETY: the CPU has AVX-512 F (checked above).
                 unsafe { quads_avx512(pos, prev, w, rest, m, params) };

@@ -151,6 +151,10 @@ pub(crate) struct XpbdGrid {
     cols: usize,
     /// Rest length per class and slot (see [`CLASSES`]).
     rest: [Placed; 6],
+    /// Whether every row of a class's `rest` holds the same bits as its first row (a flat
+    /// rest grid, as the grid builder makes): its passes then read the first row for every
+    /// row ([`Shared::rest_slot`]).
+    uniform: [bool; 6],
     /// Lagrange multipliers per class and slot, reset every substep.
     lambda: [Placed; 6],
     /// Multipliers the strain limits are handed (they have none; never read).
@@ -228,6 +232,13 @@ impl XpbdGrid {
             && load_rest(&mut self.rest, topology, rows, cols)
             && grid_triangles(topology, rows, cols);
         self.key = Some((rows, cols, springs, ok));
+        self.uniform = [false; 6];
+        if ok {
+            for (class, uniform) in self.uniform.iter_mut().enumerate() {
+                let rows_of_class = rows - CLASSES[class].0;
+                *uniform = rows_equal(&self.rest[class][..rows_of_class * cols], cols);
+            }
+        }
         self.chain_statics = [false; 4];
         self.resident = false;
         self.levels_key = None;
@@ -311,17 +322,9 @@ impl XpbdGrid {
                     }
                 }
             }
-            let uniform = |v: &[f32], rows: usize| {
-                let first = &v[..cols];
-                v.chunks_exact(cols).take(rows).all(|row| {
-                    row.iter()
-                        .zip(first)
-                        .all(|(a, b)| a.to_bits() == b.to_bits())
-                })
-            };
             level.uniform = [
-                uniform(&level.vertical, rows - s.min(rows)),
-                uniform(&level.horizontal, rows),
+                rows_equal(&level.vertical[..(rows - s.min(rows)) * cols], cols),
+                rows_equal(&level.horizontal, cols),
             ];
             self.levels.push(level);
         }
@@ -1029,6 +1032,15 @@ impl XpbdGrid {
         }
     }
 
+    /// Whether every row of a pass's lengths holds the same bits as the first.
+    fn rest_uniform(&self, which: Rest) -> bool {
+        match which {
+            Rest::Class(c) => self.uniform[c],
+            Rest::Vertical(l) => self.levels[l].uniform[0],
+            Rest::Horizontal(l) => self.levels[l].uniform[1],
+        }
+    }
+
     fn put_lambda(&mut self, which: Rest, lambda: Placed) {
         match which {
             Rest::Class(c) => self.lambda[c] = lambda,
@@ -1045,12 +1057,14 @@ impl XpbdGrid {
         let (rows, cols) = (self.rows, self.cols);
         let lv = &self.levels[level];
         let (prev, w) = (&self.prev, &self.inv_mass);
+        // The wavefront reads a uniform level's first row itself (`Limits::uniform`).
         let shared = |rest| Shared {
             prev,
             w,
             rest,
             mode: Mode::Limit,
             keep: false,
+            rest_cols: 0,
         };
         let [m0, m1] = &self.masks[0];
         let limits = Limits {
@@ -1085,6 +1099,7 @@ impl XpbdGrid {
         let block = 2 * dr * cols;
         let m = cols - a_dc.max(b_dc);
         let mut lambda = self.take_lambda(which);
+        let rest_cols = if self.rest_uniform(which) { cols } else { 0 };
         let [x, y, z] = &mut self.pos;
         if first >= x.len() {
             self.put_lambda(which, lambda);
@@ -1098,6 +1113,7 @@ impl XpbdGrid {
             rest,
             mode,
             keep: self.keep,
+            rest_cols,
         };
         let kernel = crate::simd::kernel();
         x[first..]
@@ -1149,6 +1165,7 @@ impl XpbdGrid {
         let mut lambda = self.take_lambda(which);
         let mask = &self.masks[s.trailing_zeros() as usize][colour];
         let rest = rest_of(&self.rest, &self.levels, which);
+        let rest_cols = if self.rest_uniform(which) { cols } else { 0 };
         let (prev, w) = (&self.prev, &self.inv_mass);
         let shared = Shared {
             prev,
@@ -1156,6 +1173,7 @@ impl XpbdGrid {
             rest,
             mode,
             keep: self.keep,
+            rest_cols,
         };
         let [x, y, z] = &mut self.pos;
         let [cx, cy, cz] = &mut self.corr;
@@ -1921,7 +1939,20 @@ fn grid_triangles(topology: &Topology, rows: usize, cols: usize) -> bool {
         })
 }
 
+/// Whether every row of `v` (rows of `cols`) holds the same bits as its first row.
+fn rows_equal(v: &[f32], cols: usize) -> bool {
+    let Some(first) = v.get(..cols) else {
+        return true;
+    };
+    v.chunks_exact(cols).all(|row| {
+        row.iter()
+            .zip(first)
+            .all(|(a, b)| a.to_bits() == b.to_bits())
+    })
+}
+
 /// The rest (or limit) lengths a pass reads.
+
 fn rest_of<'a>(rest: &'a [Placed; 6], levels: &'a [Level], which: Rest) -> &'a [f32] {
     match which {
         Rest::Class(c) => &rest[c],
@@ -1947,6 +1978,10 @@ pub(crate) struct Shared<'a> {
     /// Whether the multipliers are read and written: with one sweep per substep they are
     /// zero whenever read (then skipping them gives the same bits: `−C − α·0 = −C`).
     keep: bool,
+    /// `cols` when every row of `rest` holds the same bits as its first row (a flat rest
+    /// grid: [`XpbdGrid::uniform`]), else 0: slot `g` is then read at `g mod cols`, so a pass
+    /// streams one row of lengths instead of a whole array of them (the same values).
+    rest_cols: usize,
 }
 
 /// Rows `r` and `r + dr` of a block, as two disjoint slices.
@@ -2333,7 +2368,7 @@ pub(crate) fn limit_pairs(
     let (ax, ay, az) = (&mut ax[..m], &mut ay[..m], &mut az[..m]);
     let (bx, by, bz) = (&mut bx[..m], &mut by[..m], &mut bz[..m]);
     let (wa, wb) = (&sh.w[ga..ga + m], &sh.w[gb..gb + m]);
-    let rest = &sh.rest[gs..gs + m];
+    let rest = sh.rest_from(gs, m);
     let mut i0 = 0;
     while i0 < m {
         let n = SCREEN_LANES.min(m - i0);
@@ -2381,7 +2416,7 @@ pub(crate) fn limit_row(
     let [x, y, z] = x;
     let mut x = [&mut x[..m + s], &mut y[..m + s], &mut z[..m + s]];
     let w = &sh.w[g0..g0 + m + s];
-    let rest = &sh.rest[gs..gs + m];
+    let rest = sh.rest_from(gs, m);
     let mut i0 = 0;
     while i0 < m {
         let n = SCREEN_LANES.min(m - i0);
@@ -2474,7 +2509,7 @@ pub(crate) fn limit_row_both(
     let [x, y, z] = x;
     let mut x = [&mut x[..m + 1], &mut y[..m + 1], &mut z[..m + 1]];
     let w = &sh.w[g0..g0 + m + 1];
-    let rest = &sh.rest[gs..gs + m];
+    let rest = sh.rest_from(gs, m);
     let mut flagged = [0_u64; ROW_CHUNKS.div_ceil(64)];
     let mut moved = flagged;
     debug_assert!(chunks + 2 <= 64 * flagged.len());
@@ -2536,7 +2571,7 @@ fn pairs_in<const KEEP: bool>(
         &sh.prev[2][gb..gb + m],
     );
     let (wa, wb) = (&sh.w[ga..ga + m], &sh.w[gb..gb + m]);
-    let rest = &sh.rest[gs..gs + m];
+    let rest = sh.rest_from(gs, m);
     for i in 0..m {
         let l = [ax[i] - bx[i], ay[i] - by[i], az[i] - bz[i]];
         let d = [
@@ -2592,6 +2627,21 @@ pub(crate) struct PairsInput<'a> {
 }
 
 impl Shared<'_> {
+    /// Where slot `g`'s rest length is read: `g`, or its column in the first row when every
+    /// row holds the same lengths.
+    pub(crate) fn rest_slot(&self, g: usize) -> usize {
+        if self.rest_cols > 0 {
+            g % self.rest_cols
+        } else {
+            g
+        }
+    }
+
+    /// The `m` rest lengths from slot `g` ([`Self::rest_slot`]).
+    fn rest_from(&self, g: usize, m: usize) -> &[f32] {
+        let s = self.rest_slot(g);
+        &self.rest[s..s + m]
+    }
     /// The input of [`crate::simd::xpbd_pairs`]' AVX-512 kernel for the `m` pairs of
     /// [`pairs`] at `g = (a0, b0, slot0)`; `None` for a limit (those take [`pairs`]).
     pub(crate) fn pairs_input(
@@ -2605,7 +2655,7 @@ impl Shared<'_> {
                 prev_b: std::array::from_fn(|k| &self.prev[k][gb..gb + m]),
                 wa: &self.w[ga..ga + m],
                 wb: &self.w[gb..gb + m],
-                rest: &self.rest[gs..gs + m],
+                rest: self.rest_from(gs, m),
                 params: (alpha, gamma),
                 keep: self.keep,
             }),
@@ -2707,7 +2757,7 @@ fn row_in<const KEEP: bool>(
         &sh.prev[2][g0..g0 + m + s],
     );
     let w = &sh.w[g0..g0 + m + s];
-    let rest = &sh.rest[g0..g0 + m];
+    let rest = sh.rest_from(g0, m);
     {
         let (xa, xb) = (&x[..m], &x[s..s + m]);
         let (ya, yb) = (&y[..m], &y[s..s + m]);
@@ -2871,6 +2921,7 @@ mod tests {
                 rest: &rest,
                 mode,
                 keep: false,
+                rest_cols: 0,
             };
             let m = cols - 2;
             for colour in 0..2 {
