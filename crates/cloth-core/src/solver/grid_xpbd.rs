@@ -1952,7 +1952,6 @@ fn rows_equal(v: &[f32], cols: usize) -> bool {
 }
 
 /// The rest (or limit) lengths a pass reads.
-
 fn rest_of<'a>(rest: &'a [Placed; 6], levels: &'a [Level], which: Rest) -> &'a [f32] {
     match which {
         Rest::Class(c) => &rest[c],
@@ -3000,5 +2999,80 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A pass reads a class's rest lengths from the first row only when every row of that
+    /// class holds the first row's bits ([`XpbdGrid::uniform`], [`Shared::rest_slot`]): the
+    /// flag is checked here against the topology's springs, compared independently (each
+    /// spring against the spring of its class at the same column of row 0), on a flat grid
+    /// (every class uniform, so the one-row reads are taken) and on grids whose rest shape
+    /// is rotated or bent, where some rows differ in their last bits or more (the flag must
+    /// then be false and every row read). Tolerance: none (bit equality).
+    #[test]
+    fn rest_lengths_are_read_from_one_row_only_when_every_row_is_the_same() {
+        use crate::grid::GridBuilder;
+        let (rows, cols) = (9, 7);
+        let flat = GridBuilder::new(rows, cols).build().expect("flat");
+        let rotated = GridBuilder::new(rows, cols)
+            .rotation(glam::Quat::from_rotation_y(0.3) * glam::Quat::from_rotation_x(0.7))
+            .origin(Vec3::new(0.37, 1.3, -2.1))
+            .build()
+            .expect("rotated");
+        // The flat grid's springs with rest lengths from a shape with one row lifted: row 4
+        // (its vertical springs to rows 3 and 5 change, and the bend's to rows 2 and 6), or
+        // the last row (only the last row of each vertical class changes).
+        let lifted = |row: usize| {
+            let mut shape = flat.particles.position.clone();
+            for p in &mut shape[row * cols..(row + 1) * cols] {
+                p.y += 0.05;
+            }
+            let per_kind = std::array::from_fn(|i| {
+                let kind = crate::topology::SpringKind::ALL[i];
+                assert_eq!(kind as usize, i);
+                let springs = flat.topology.springs_of(kind).iter();
+                springs
+                    .map(|s| crate::topology::Spring {
+                        rest_length: shape[s.a as usize].distance(shape[s.b as usize]),
+                        ..*s
+                    })
+                    .collect()
+            });
+            Topology::new(per_kind, flat.topology.triangles().to_vec()).with_grid(rows, cols)
+        };
+        let (bent, bent_last) = (lifted(4), lifted(rows - 1));
+        let mut any_non_uniform = false;
+        for (name, topology) in [
+            ("flat", &flat.topology),
+            ("rotated", &rotated.topology),
+            ("bent", &bent),
+            ("bent at the last row", &bent_last),
+        ] {
+            let mut grid = XpbdGrid::default();
+            assert!(grid.prepare(topology, rows * cols), "{name}: not a grid");
+            for (class, &(dr, a_dc, b_dc, kind)) in CLASSES.iter().enumerate() {
+                // The rest length of every spring of this class by its slot (first end's row
+                // and column, less the class's column offset).
+                let mut by_slot = std::collections::BTreeMap::new();
+                for sp in topology.springs_of(kind) {
+                    let (a, b) = (sp.a as usize, sp.b as usize);
+                    let (ra, ca, rb, cb) = (a / cols, a % cols, b / cols, b % cols);
+                    if rb == ra + dr && cb + a_dc == ca + b_dc && ca >= a_dc {
+                        by_slot.insert((ra, ca - a_dc), sp.rest_length.to_bits());
+                    }
+                }
+                let expected = by_slot
+                    .iter()
+                    .all(|(&(_, c), &bits)| by_slot.get(&(0, c)) == Some(&bits));
+                assert_eq!(grid.uniform[class], expected, "{name}: class {class}");
+                if name == "flat" {
+                    assert!(
+                        grid.uniform[class],
+                        "flat: class {class} not read from one row"
+                    );
+                }
+                any_non_uniform |= !expected;
+            }
+        }
+        assert!(any_non_uniform, "no grid with differing rows was tried");
     }
 }
