@@ -2641,6 +2641,7 @@ impl Shared<'_> {
         let s = self.rest_slot(g);
         &self.rest[s..s + m]
     }
+
     /// The input of [`crate::simd::xpbd_pairs`]' AVX-512 kernel for the `m` pairs of
     /// [`pairs`] at `g = (a0, b0, slot0)`; `None` for a limit (those take [`pairs`]).
     pub(crate) fn pairs_input(
