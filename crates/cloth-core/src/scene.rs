@@ -604,7 +604,8 @@ pub struct SolverDesc {
     #[serde(default)]
     pub implicit: ImplicitDesc,
     /// `{ iterations, tethers, tether_slack, hierarchy_levels, hierarchy_slack,
-    /// structural_limit, chains, chain_iterations, chain_rounds, shear_chains }` (see
+    /// structural_limit, chains, chain_iterations, chain_rounds, shear_chains, shear_rows }`
+    /// (see
     /// [`XpbdDesc`]).
     #[serde(default)]
     pub xpbd: XpbdDesc,
@@ -715,6 +716,8 @@ pub struct XpbdDesc {
     pub chain_rounds: u32,
     #[serde(default)]
     pub shear_chains: bool,
+    #[serde(default)]
+    pub shear_rows: bool,
 }
 fn d_chain_rounds() -> u32 {
     XpbdSettings::default().chain_rounds
@@ -744,6 +747,7 @@ impl Default for XpbdDesc {
             chain_iterations: d_chain_iter(),
             chain_rounds: d_chain_rounds(),
             shear_chains: false,
+            shear_rows: false,
         }
     }
 }
@@ -1477,6 +1481,7 @@ impl Scene {
             chain_iterations: s.xpbd.chain_iterations,
             chain_rounds: s.xpbd.chain_rounds,
             shear_chains: s.xpbd.shear_chains,
+            shear_rows: s.xpbd.shear_rows,
         };
         config
     }
@@ -1733,6 +1738,7 @@ const KNOWN_KEYS: &[&str] = &[
     "chain_iterations",
     "chain_rounds",
     "shear_chains",
+    "shear_rows",
     "max_stretch_ratio",
     "max_speed",
     "eye",
@@ -2141,6 +2147,7 @@ impl Scene {
                 chain_iterations: c.xpbd.chain_iterations,
                 chain_rounds: c.xpbd.chain_rounds,
                 shear_chains: c.xpbd.shear_chains,
+                shear_rows: c.xpbd.shear_rows,
             },
             limits: LimitsDesc {
                 max_stretch_ratio: c.limits.max_stretch_ratio,

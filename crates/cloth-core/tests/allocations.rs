@@ -108,6 +108,13 @@ fn steps_after_the_first_do_not_allocate() {
         sim.pin(0).expect("pin");
         // Inside the global pool, as `cloth sim` steps.
         rayon::scope(|_| assert_steps_do_not_allocate(&mut sim, &format!("{integrator:?}")));
+        if integrator == Integrator::Xpbd {
+            // The reference path with its shear springs in the row order (kept in its scratch).
+            config.xpbd.shear_chains = false;
+            config.xpbd.shear_rows = true;
+            sim.set_config(config).expect("config");
+            rayon::scope(|_| assert_steps_do_not_allocate(&mut sim, "Xpbd, shear rows"));
+        }
     }
 }
 
@@ -130,8 +137,11 @@ fn threaded_fast_path_steps_do_not_allocate() {
         .into_iter()
         .map(|i| (i, false))
         .chain([(Integrator::Xpbd, false), (Integrator::Xpbd, true)])
-        .chain([(Integrator::ImplicitEuler, false)]);
-    for (integrator, chains) in runs {
+        .chain([(Integrator::ImplicitEuler, false)])
+        .map(|(i, chains)| (i, chains, false))
+        // XPBD's chains with the shear springs swept row by row (`xpbd.shear_rows`).
+        .chain([(Integrator::Xpbd, true, true)]);
+    for (integrator, chains, rows) in runs {
         let mut sim = presets::drape(32, integrator).expect("drape");
         let mut config = *sim.config();
         if integrator == Integrator::Xpbd {
@@ -143,7 +153,8 @@ fn threaded_fast_path_steps_do_not_allocate() {
             config.xpbd.chain_iterations = if chains { 2 } else { 1 };
             config.xpbd.chain_rounds = if chains { 2 } else { 1 };
             // With the structural chains, the shear chains too (their blocks are kept).
-            config.xpbd.shear_chains = chains;
+            config.xpbd.shear_chains = chains && !rows;
+            config.xpbd.shear_rows = rows;
             // The structural strain limit (its screened passes) with the chains.
             config.xpbd.structural_limit = chains.then_some(0.02);
         }
@@ -164,7 +175,7 @@ fn threaded_fast_path_steps_do_not_allocate() {
             }
             assert_steps_do_not_allocate(
                 &mut sim,
-                &format!("{integrator:?} (chains {chains}) on 2 threads"),
+                &format!("{integrator:?} (chains {chains}, shear rows {rows}) on 2 threads"),
             );
         });
     }

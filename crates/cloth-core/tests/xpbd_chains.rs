@@ -301,6 +301,23 @@ fn chains_are_bit_identical_across_threads_and_kernels() {
     assert_same_bits_across_threads_and_kernels([drape(40, 8, true, true), rounds, sweeps]);
 }
 
+/// Determinism of the shear springs swept row by row (`xpbd.shear_rows`): the two halves of
+/// cell rows share no particle and the row between them runs after both, so 1, 2 and 3
+/// threads and every kernel give the same bits (the full drape with chain rounds, and with
+/// two sweeps, whose shear multipliers are kept). Tolerance: none.
+#[test]
+fn shear_rows_are_bit_identical_across_threads_and_kernels() {
+    let rows = |iterations: u32| {
+        configured(drape(40, 8, true, true), |c| {
+            c.xpbd.shear_rows = true;
+            c.xpbd.chain_rounds = 2;
+            c.xpbd.chain_iterations = 2;
+            c.xpbd.iterations = iterations;
+        })
+    };
+    assert_same_bits_across_threads_and_kernels([rows(1), rows(2)]);
+}
+
 /// For each simulation, 40 steps on 1, 2 and 3 threads with every available kernel give the
 /// bits of the portable kernel on this thread.
 fn assert_same_bits_across_threads_and_kernels<const N: usize>(sims: [Simulation; N]) {

@@ -155,11 +155,12 @@ fn grid_prediction_matches_the_reference_bit_for_bit() {
 
 /// The grid path and the reference path sweep in different orders (colour by colour, and
 /// spring by spring), so they agree to within the solver's convergence: settled, the
-/// hanging-curtain shape of each is the same static equilibrium. Tolerance 1 mm on a 0.5 m
-/// curtain (0.2 %).
+/// hanging-curtain shape of each is the same static equilibrium. So does the grid path with
+/// its shear springs swept row by row (`xpbd.shear_rows`, on both paths): only the order of
+/// the sweep changes, not the equilibrium. Tolerance 1 mm on a 0.5 m curtain (0.2 %).
 #[test]
 fn grid_and_reference_paths_settle_to_the_same_shape() {
-    let make = || {
+    let make = |shear_rows: bool| {
         let cloth = GridBuilder::new(16, 16)
             .size(0.5, 0.5)
             .orientation(Orientation::Vertical)
@@ -168,7 +169,7 @@ fn grid_and_reference_paths_settle_to_the_same_shape() {
             .pin_corner(cloth_core::Corner::TopRight)
             .build()
             .expect("cloth");
-        let config = SimConfig {
+        let mut config = SimConfig {
             integrator: Integrator::Xpbd,
             substeps: 40,
             damping: 5e-3,
@@ -179,11 +180,12 @@ fn grid_and_reference_paths_settle_to_the_same_shape() {
             ),
             ..SimConfig::default()
         };
+        config.xpbd.shear_rows = shear_rows;
         Simulation::new(cloth, config).expect("sim")
     };
-    let settle = |kernel: Kernel| -> (Vec<Vec3>, f64) {
+    let settle = |kernel: Kernel, shear_rows: bool| -> (Vec<Vec3>, f64) {
         simd::set_kernel(Some(kernel)).expect("kernel");
-        let mut sim = make();
+        let mut sim = make(shear_rows);
         for _ in 0..300 {
             sim.step().expect("stable");
         }
@@ -191,16 +193,26 @@ fn grid_and_reference_paths_settle_to_the_same_shape() {
         simd::set_kernel(None).expect("default");
         (sim.particles().position.clone(), ke)
     };
-    let (grid, ke_grid) = settle(Kernel::Portable);
-    let (reference, ke_ref) = settle(Kernel::Reference);
-    let worst = grid
-        .iter()
-        .zip(&reference)
-        .map(|(a, b)| a.distance(*b))
-        .fold(0.0f32, f32::max);
-    eprintln!("largest distance {worst:.2e} m; KE grid {ke_grid:.2e} J, reference {ke_ref:.2e} J");
-    assert!(ke_grid < 1e-6 && ke_ref < 1e-6, "not settled");
-    assert!(worst < 1e-3, "shapes differ by {worst} m");
+    let distance = |a: &[Vec3], b: &[Vec3]| {
+        a.iter()
+            .zip(b)
+            .map(|(a, b)| a.distance(*b))
+            .fold(0.0f32, f32::max)
+    };
+    let (colours, _) = settle(Kernel::Portable, false);
+    for shear_rows in [false, true] {
+        let (grid, ke_grid) = settle(Kernel::Portable, shear_rows);
+        let (reference, ke_ref) = settle(Kernel::Reference, shear_rows);
+        let worst = distance(&grid, &reference);
+        let orders = distance(&grid, &colours);
+        eprintln!(
+            "shear_rows {shear_rows}: largest distance {worst:.2e} m (to the colours' grid \
+             path {orders:.2e} m); KE grid {ke_grid:.2e} J, reference {ke_ref:.2e} J"
+        );
+        assert!(ke_grid < 1e-6 && ke_ref < 1e-6, "not settled");
+        assert!(worst < 1e-3, "shapes differ by {worst} m");
+        assert!(orders < 1e-3, "the row order settles {orders} m away");
+    }
 }
 
 /// Multi-resolution strain limits (Wang et al. 2010): with levels up to the whole height, a
@@ -405,7 +417,44 @@ fn grid_path_drapes_without_penetration() {
 /// Tolerances: the issue's figures (p99.9 < 5 %, max < 10 %, penetration < 8 mm).
 #[test]
 fn real_time_drape_setting_meets_the_strain_figures_at_256() {
-    let mut sim = presets::realtime_drape(256, 5).expect("drape");
+    let (p999, late_max, deepest) = drape_figures(presets::realtime_drape(256, 5).expect("drape"));
+    assert!(p999 < 0.05, "p99.9 structural strain {p999}");
+    assert!(late_max < 0.10, "settled structural maximum {late_max}");
+    assert!(deepest < 0.008, "penetration {deepest}");
+}
+
+/// The same drape at 256² with 3 substeps instead of 5 (two chain rounds of two Newton
+/// iterations, the 2 % limit): with the shear springs swept row by row
+/// (`xpbd.shear_rows`) it meets the same figures; swept in two colours of alternate rows,
+/// as by default, the shear pass and the chain solves undo one another on the ball and the
+/// settled maximum is far past 10 % (measured 182 % against 8.8 %). Only the order of the
+/// sweep differs. Tolerances: the issue's figures, and 10 % for the colours' miss.
+#[test]
+fn shear_rows_meet_the_strain_figures_at_256_with_three_substeps() {
+    let at = |shear_rows: bool| {
+        let mut sim = presets::realtime_drape(256, 3).expect("drape");
+        let mut config = *sim.config();
+        config.xpbd.shear_rows = shear_rows;
+        sim.set_config(config).expect("config");
+        drape_figures(sim)
+    };
+    let (p999, late_max, deepest) = at(true);
+    assert!(p999 < 0.05, "rows: p99.9 structural strain {p999}");
+    assert!(
+        late_max < 0.10,
+        "rows: settled structural maximum {late_max}"
+    );
+    assert!(deepest < 0.008, "rows: penetration {deepest}");
+    let (_, colours, _) = at(false);
+    assert!(
+        colours > 0.10,
+        "colours: settled structural maximum {colours}"
+    );
+}
+
+/// 3 s (180 frames) of a drape: the 99.9th percentile of the structural strain at the end,
+/// the largest structural strain over the second half, and the deepest penetration.
+fn drape_figures(mut sim: Simulation) -> (f32, f32, f32) {
     let frames = 180;
     let (mut late_max, mut deepest) = (0.0_f32, 0.0_f32);
     for frame in 0..frames {
@@ -423,7 +472,5 @@ fn real_time_drape_setting_meets_the_strain_figures_at_256() {
     )
     .expect("structural springs")[0];
     eprintln!("p99.9 {p999:.4}, settled max {late_max:.4}, deepest {deepest:.2e} m");
-    assert!(p999 < 0.05, "p99.9 structural strain {p999}");
-    assert!(late_max < 0.10, "settled structural maximum {late_max}");
-    assert!(deepest < 0.008, "penetration {deepest}");
+    (p999, late_max, deepest)
 }

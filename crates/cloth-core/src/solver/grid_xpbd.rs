@@ -571,6 +571,13 @@ impl XpbdGrid {
                     self.shear_chains(class - 2, (alpha, gamma, settings.chain_iterations));
                     continue;
                 }
+                // `shear_rows`: both shear classes in one sweep down the rows.
+                if settings.shear_rows && !settings.shear_chains && matches!(class, 2 | 3) {
+                    if class == 2 {
+                        self.shear_rows([modes[2], modes[3]]);
+                    }
+                    continue;
+                }
                 let (dr, a_dc, b_dc, _) = CLASSES[class];
                 for colour in 0..2 {
                     if dr == 0 {
@@ -1080,6 +1087,100 @@ impl XpbdGrid {
         let n = rows * cols;
         let bands = rayon::current_num_threads().clamp(1, rows.div_ceil(8));
         limits.run([&mut x[..n], &mut y[..n], &mut z[..n]], 0, rows, bands);
+    }
+
+    /// The shear springs row by row: cell row after cell row, each row's diagonals and then
+    /// its anti-diagonals (each a set of disjoint pairs, projected at once), a Gauss–Seidel
+    /// sweep in the order of the rows, which carries a correction across the cloth in one
+    /// sweep where the two colours carry it one row. The cell rows split into two domains
+    /// that share no particle, swept at the same time (rows `[0, b)` and `(b, rows − 1)`),
+    /// and then the cell row `b` between them: the same bits for any thread count.
+    fn shear_rows(&mut self, modes: [Option<Mode>; 2]) {
+        let (rows, cols) = (self.rows, self.cols);
+        let m = cols - 1;
+        let keep = self.keep;
+        let mut lambdas = [
+            self.take_lambda(Rest::Class(2)),
+            self.take_lambda(Rest::Class(3)),
+        ];
+        let shared: [Option<Shared<'_>>; 2] = std::array::from_fn(|d| {
+            modes[d].map(|mode| Shared {
+                prev: &self.prev,
+                w: &self.inv_mass,
+                rest: &self.rest[2 + d],
+                mode,
+                keep,
+                rest_cols: if self.uniform[2 + d] { cols } else { 0 },
+            })
+        });
+        let kernel = crate::simd::kernel();
+        // Cell row `r` (global) of the arrays `x` that start at particle row `base`.
+        let row = |x: &mut [&mut [f32]; 3], lam: &mut [&mut [f32]; 2], r: usize, base: usize| {
+            for (d, sh) in shared.iter().enumerate() {
+                let Some(sh) = sh else { continue };
+                let (a_dc, b_dc) = if d == 0 { (0, 1) } else { (1, 0) };
+                let (ga, gb) = (r * cols, (r + 1) * cols);
+                let (la, lb) = (ga - base * cols, gb - base * cols);
+                let [x, y, z] = x;
+                let (xa, xb) = x.split_at_mut(lb);
+                let (ya, yb) = y.split_at_mut(lb);
+                let (za, zb) = z.split_at_mut(lb);
+                crate::simd::xpbd_pairs(
+                    kernel,
+                    [
+                        &mut xa[la + a_dc..la + a_dc + m],
+                        &mut ya[la + a_dc..la + a_dc + m],
+                        &mut za[la + a_dc..la + a_dc + m],
+                    ],
+                    [
+                        &mut xb[b_dc..b_dc + m],
+                        &mut yb[b_dc..b_dc + m],
+                        &mut zb[b_dc..b_dc + m],
+                    ],
+                    sh,
+                    (ga + a_dc, gb + b_dc, ga),
+                    &mut lam[d][la..la + m],
+                );
+            }
+        };
+        let cells = rows - 1;
+        let b = cells / 2;
+        {
+            let [x, y, z] = &mut self.pos;
+            let [l0, l1] = &mut lambdas;
+            let split = (b + 1) * cols;
+            let (x0, x1) = x.split_at_mut(split);
+            let (y0, y1) = y.split_at_mut(split);
+            let (z0, z1) = z.split_at_mut(split);
+            let (l00, l01) = l0.split_at_mut(split);
+            let (l10, l11) = l1.split_at_mut(split);
+            rayon::join(
+                || {
+                    let mut xs = [x0, y0, z0];
+                    let mut ls = [l00, l10];
+                    for r in 0..b {
+                        row(&mut xs, &mut ls, r, 0);
+                    }
+                },
+                || {
+                    let mut xs = [x1, y1, z1];
+                    let mut ls = [l01, l11];
+                    for r in b + 1..cells {
+                        row(&mut xs, &mut ls, r, b + 1);
+                    }
+                },
+            );
+        }
+        {
+            let [x, y, z] = &mut self.pos;
+            let [l0, l1] = &mut lambdas;
+            let mut xs = [&mut x[..], &mut y[..], &mut z[..]];
+            let mut ls = [&mut l0[..], &mut l1[..]];
+            row(&mut xs, &mut ls, b, 0);
+        }
+        let [l0, l1] = lambdas;
+        self.put_lambda(Rest::Class(2), l0);
+        self.put_lambda(Rest::Class(3), l1);
     }
 
     /// One colour of a class joining row `r` to row `r + dr`: slot `(r, c)` joins

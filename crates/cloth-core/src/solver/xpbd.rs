@@ -63,6 +63,10 @@ pub(crate) struct XpbdScratch {
     /// Multipliers of the shear chains (`XpbdSettings::shear_chains`) by direction
     /// (diagonal, anti-diagonal) and slot.
     shear_lambda: [Vec<f32>; 2],
+    /// The shear springs' indices in the grid path's row order (`XpbdSettings::shear_rows`),
+    /// for the `(springs, rows, cols)` of `shear_order_key`.
+    shear_order: Vec<u32>,
+    shear_order_key: Option<(usize, usize, usize)>,
 }
 
 impl XpbdScratch {
@@ -348,7 +352,38 @@ fn solve_springs(
             }
             continue;
         }
-        for (s, lambda) in springs.iter().zip(lambda.iter_mut()) {
+        // `shear_rows`: the grid path's row order (two halves of cell rows, then the row
+        // between them; each row's diagonals, then its anti-diagonals), kept in the scratch.
+        let rows_order =
+            kind == SpringKind::Shear && cfg.xpbd.shear_rows && ctx.topology.grid().is_some();
+        if let (true, Some((rows, cols))) = (rows_order, ctx.topology.grid())
+            && sc.shear_order_key != Some((springs.len(), rows, cols))
+        {
+            let between = (rows - 1) / 2;
+            let key = |i: u32| {
+                let s = &springs[i as usize];
+                let (a, b) = (s.a as usize, s.b as usize);
+                let anti = usize::from(b - a != cols + 1);
+                let r = a / cols;
+                let half = match r.cmp(&between) {
+                    std::cmp::Ordering::Less => 0,
+                    std::cmp::Ordering::Greater => 1,
+                    std::cmp::Ordering::Equal => 2,
+                };
+                (half, r, anti, i)
+            };
+            sc.shear_order.clear();
+            sc.shear_order.extend(0..springs.len() as u32);
+            sc.shear_order.sort_unstable_by_key(|&i| key(i));
+            sc.shear_order_key = Some((springs.len(), rows, cols));
+        }
+        for j in 0..springs.len() {
+            let i = if rows_order {
+                sc.shear_order[j] as usize
+            } else {
+                j
+            };
+            let (s, lambda) = (&springs[i], &mut lambda[i]);
             let (a, b) = (s.a as usize, s.b as usize);
             let (wa, wb) = (p.inv_mass[a], p.inv_mass[b]);
             let w = wa + wb;
