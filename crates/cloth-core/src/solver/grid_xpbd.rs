@@ -571,8 +571,9 @@ impl XpbdGrid {
                     self.shear_chains(class - 2, (alpha, gamma, settings.chain_iterations));
                     continue;
                 }
-                // `shear_rows`: both shear classes in one sweep down the rows.
-                if settings.shear_rows && !settings.shear_chains && matches!(class, 2 | 3) {
+                // `shear_rows` (after `shear_chains`, which takes both shear classes above):
+                // both shear classes in one sweep down the rows.
+                if settings.shear_rows && matches!(class, 2 | 3) {
                     if class == 2 {
                         self.shear_rows([modes[2], modes[3]]);
                     }
@@ -1110,6 +1111,7 @@ impl XpbdGrid {
                 rest: &self.rest[2 + d],
                 mode,
                 keep,
+                // `rest_uniform` by field (a method would borrow the whole scratch).
                 rest_cols: if self.uniform[2 + d] { cols } else { 0 },
             })
         });
@@ -1125,21 +1127,13 @@ impl XpbdGrid {
                 let (xa, xb) = x.split_at_mut(lb);
                 let (ya, yb) = y.split_at_mut(lb);
                 let (za, zb) = z.split_at_mut(lb);
-                crate::simd::xpbd_pairs(
+                pair_row(
                     kernel,
-                    [
-                        &mut xa[la + a_dc..la + a_dc + m],
-                        &mut ya[la + a_dc..la + a_dc + m],
-                        &mut za[la + a_dc..la + a_dc + m],
-                    ],
-                    [
-                        &mut xb[b_dc..b_dc + m],
-                        &mut yb[b_dc..b_dc + m],
-                        &mut zb[b_dc..b_dc + m],
-                    ],
+                    ([&mut xa[la..], &mut ya[la..], &mut za[la..]], [xb, yb, zb]),
+                    (a_dc, b_dc, m),
                     sh,
-                    (ga + a_dc, gb + b_dc, ga),
-                    &mut lam[d][la..la + m],
+                    (ga, gb),
+                    &mut lam[d][la..],
                 );
             }
         };
@@ -1231,22 +1225,13 @@ impl XpbdGrid {
                     let (xa, xb) = rows_pair(bx, r, dr, cols);
                     let (ya, yb) = rows_pair(by, r, dr, cols);
                     let (za, zb) = rows_pair(bz, r, dr, cols);
-                    let lam = &mut bl[r * cols..r * cols + m];
-                    crate::simd::xpbd_pairs(
+                    pair_row(
                         kernel,
-                        [
-                            &mut xa[a_dc..a_dc + m],
-                            &mut ya[a_dc..a_dc + m],
-                            &mut za[a_dc..a_dc + m],
-                        ],
-                        [
-                            &mut xb[b_dc..b_dc + m],
-                            &mut yb[b_dc..b_dc + m],
-                            &mut zb[b_dc..b_dc + m],
-                        ],
+                        ([xa, ya, za], [xb, yb, zb]),
+                        (a_dc, b_dc, m),
                         &shared,
-                        (ga + a_dc, gb + b_dc, ga),
-                        lam,
+                        (ga, gb),
+                        &mut bl[r * cols..],
                     );
                 }
             });
@@ -2082,6 +2067,38 @@ pub(crate) struct Shared<'a> {
     /// grid: [`XpbdGrid::uniform`]), else 0: slot `g` is then read at `g mod cols`, so a pass
     /// streams one row of lengths instead of a whole array of them (the same values).
     rest_cols: usize,
+}
+
+/// One row of a vertical pass: the `m` pairs `(c + a_dc)` of row `a` against `(c + b_dc)` of
+/// row `b` (`rows`: each row's x, y, z from its first column; `(ga, gb)`: the rows' first
+/// slots, the pairs' slots from `ga`), projected in place with `kernel`; `lambda` from the
+/// row's first slot. [`XpbdGrid::vertical`]'s colours and [`XpbdGrid::shear_rows`]' rows both
+/// project through it.
+fn pair_row(
+    kernel: crate::simd::Kernel,
+    rows: ([&mut [f32]; 3], [&mut [f32]; 3]),
+    (a_dc, b_dc, m): (usize, usize, usize),
+    sh: &Shared<'_>,
+    (ga, gb): (usize, usize),
+    lambda: &mut [f32],
+) {
+    let ([xa, ya, za], [xb, yb, zb]) = rows;
+    crate::simd::xpbd_pairs(
+        kernel,
+        [
+            &mut xa[a_dc..a_dc + m],
+            &mut ya[a_dc..a_dc + m],
+            &mut za[a_dc..a_dc + m],
+        ],
+        [
+            &mut xb[b_dc..b_dc + m],
+            &mut yb[b_dc..b_dc + m],
+            &mut zb[b_dc..b_dc + m],
+        ],
+        sh,
+        (ga + a_dc, gb + b_dc, ga),
+        &mut lambda[..m],
+    );
 }
 
 /// Rows `r` and `r + dr` of a block, as two disjoint slices.
