@@ -2,17 +2,21 @@
 //! 53 substeps of 3.125e-4 s per step) on the reference path and on the grid fast path with 1
 //! and 2 threads, the fast path at 32² … 512², a 64×64 drape with each integrator, implicit
 //! Euler's 128² drape on 1 and 2 threads, XPBD's 256² drape, and the real-time drape settings
-//! of issue 7's target 2 (256² at 5 substeps, 512² at 10).
+//! of issue 7's target 2 (256² at 3 substeps of 2 chain rounds, 512² at 6 of 3).
 //!
 //! Throughput is reported in particle-substeps per second (criterion's "elements"). Every
-//! iteration steps a clone of the same prepared simulation, so runs compare.
+//! iteration steps a clone of the same prepared simulation, so runs compare; the real-time
+//! settings' iterations are the frames of one running simulation instead.
 
 use std::hint::black_box;
 use std::time::Duration;
 
 use cloth_core::simd::{self, Kernel};
 use cloth_core::{Integrator, Simulation, presets};
-use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::measurement::WallTime;
+use criterion::{
+    BatchSize, BenchmarkGroup, Criterion, Throughput, criterion_group, criterion_main,
+};
 
 /// Steps `sim` `warmup` times so that the benchmark measures a cloth in contact, not a flat
 /// sheet in free fall.
@@ -27,15 +31,13 @@ fn bench_step(c: &mut Criterion, name: &str, sim: &Simulation) {
     bench_on(c, name, sim, 1, None);
 }
 
-/// Measures `sim.step()` on a pool of `threads` worker threads with `kernel` (`None`: the
-/// best this CPU runs).
-fn bench_on(
-    c: &mut Criterion,
-    name: &str,
+/// A pool of `threads` worker threads, and the benchmark group "step" with `sim`'s work per
+/// step (particles × substeps) as its throughput and the samples every bench here takes.
+fn pool_and_group<'a>(
+    c: &'a mut Criterion,
     sim: &Simulation,
     threads: usize,
-    kernel: Option<Kernel>,
-) {
+) -> (rayon::ThreadPool, BenchmarkGroup<'a, WallTime>) {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -46,6 +48,19 @@ fn bench_on(
     group.sample_size(10);
     group.warm_up_time(Duration::from_secs(1));
     group.measurement_time(Duration::from_secs(4));
+    (pool, group)
+}
+
+/// Measures `sim.step()` on a pool of `threads` worker threads with `kernel` (`None`: the
+/// best this CPU runs).
+fn bench_on(
+    c: &mut Criterion,
+    name: &str,
+    sim: &Simulation,
+    threads: usize,
+    kernel: Option<Kernel>,
+) {
+    let (pool, mut group) = pool_and_group(c, sim, threads);
     group.bench_function(name, |b| {
         pool.install(|| {
             simd::set_kernel(kernel).expect("kernel available");
@@ -177,17 +192,8 @@ fn realtime_drape(c: &mut Criterion) {
 /// Measures the frames of one running simulation (a clone of `sim`, stepped on and on) on a
 /// pool of `threads` worker threads, with the best kernel this CPU runs.
 fn bench_frames(c: &mut Criterion, name: &str, sim: &Simulation, threads: usize) {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .expect("thread pool");
-    let work = sim.particles().len() as u64 * u64::from(sim.config().substeps);
+    let (pool, mut group) = pool_and_group(c, sim, threads);
     let mut running = sim.clone();
-    let mut group = c.benchmark_group("step");
-    group.throughput(Throughput::Elements(work));
-    group.sample_size(10);
-    group.warm_up_time(Duration::from_secs(1));
-    group.measurement_time(Duration::from_secs(4));
     group.bench_function(name, |b| {
         pool.install(|| {
             b.iter(|| {
