@@ -11,7 +11,8 @@
 # (xpbd.chain_iterations, default 1), e.g. 10:0:chains:1:3, and a sixth the rounds of chain
 # solves per sweep (xpbd.chain_rounds, default 1), e.g. 6:0:chains:1:2:2, and a seventh
 # `shear` to solve the shear springs as chains along the diagonals (xpbd.shear_chains), e.g.
-# 20:0:chains:1:1:1:shear.
+# 20:0:chains:1:1:1:shear, or `rows` to sweep them row by row (xpbd.shear_rows, as the real-time
+# settings do), e.g. 6:0:chains:1:2:3:rows (issue 7's 512² setting; 256²: 3:0:chains:1:2:2:rows).
 # The last column is the springs' elastic energy at the end (J): a drape that found its shape
 # stores little (0.2 J at 256² with 24 substeps), one whose cells collapsed in shear much more.
 # p99.9% and max% are the strain of the last frame; late_max% is the largest structural strain of
@@ -22,7 +23,7 @@
 # SCENE=file.toml runs another scene (default: the built-in drape); EXTRA=KEY=VALUE adds one
 # more --set (e.g. EXTRA='material.shear={stiffness=1e-6,damping=0.0}'); LIMIT=0.02 sets the
 # structural strain limit (xpbd.structural_limit) of every setting (the last column).
-# Usage: [KERNEL=reference] [LIMIT=0.02] scripts/realtime-series.sh RES SECONDS THREADS SUBSTEPS:LEVELS[:chains[:SWEEPS[:NEWTON[:ROUNDS[:shear]]]]]...
+# Usage: [KERNEL=reference] [LIMIT=0.02] scripts/realtime-series.sh RES SECONDS THREADS SUBSTEPS:LEVELS[:chains[:SWEEPS[:NEWTON[:ROUNDS[:shear|rows]]]]]...
 set -euo pipefail
 res=$1 seconds=$2 threads=$3
 shift 3
@@ -40,6 +41,8 @@ for setting in "$@"; do
   # shear_chains only when asked for (binaries before it reject the key).
   with_shear=
   [ "${shear:-}" = shear ] && with_shear=,shear_chains=true
+  # shear_rows only when asked for (binaries before it reject the key).
+  [ "${shear:-}" = rows ] && with_shear=,shear_rows=true
   # structural_limit only when asked for (binaries before it reject the key).
   with_limit=${LIMIT:+,structural_limit=$LIMIT}
   sweeps=${sweeps:-1}
