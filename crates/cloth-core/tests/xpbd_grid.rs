@@ -157,7 +157,8 @@ fn grid_prediction_matches_the_reference_bit_for_bit() {
 /// spring by spring), so they agree to within the solver's convergence: settled, the
 /// hanging-curtain shape of each is the same static equilibrium, with the shear springs in
 /// two colours of alternate rows (the default) and row by row (`xpbd.shear_rows`, on both
-/// paths): only the order of the sweep changes, not the equilibrium. Tolerance 1 mm on a 0.5 m curtain (0.2 %).
+/// paths): only the order of the sweep changes, not the equilibrium. Tolerance 1 mm on a
+/// 0.5 m curtain (0.2 %).
 #[test]
 fn grid_and_reference_paths_settle_to_the_same_shape() {
     let make = |shear_rows: bool| {
@@ -430,7 +431,7 @@ fn real_time_drape_setting_meets_the_strain_figures_at_256() {
 /// shear springs swept in two colours of alternate rows (`xpbd.shear_rows = false`, the
 /// default) leaves the shear pass and the chain solves undoing one another on the
 /// ball, and the settled maximum far past 10 % (measured 182 % against 8.8 % row by row). The
-/// colours needed 5 substeps (8.6 %), which still meet the figures.
+/// colours needed 5 substeps (measured 7.0 %), which still meet the figures.
 /// Tolerances: 10 % (the colours' miss at 3 substeps); the figures at 5.
 #[test]
 fn shear_colours_need_five_substeps_at_256_where_rows_need_three() {
