@@ -369,19 +369,19 @@ pub struct XpbdSettings {
     /// 40 % more time per substep. Default `false`. Ignored on a cloth
     /// that is not a grid.
     pub shear_chains: bool,
-    /// Project the shear springs of a grid cloth **row by row** on the grid path: cell row
-    /// after cell row, each row's diagonals and then its anti-diagonals, a Gauss–Seidel sweep
-    /// in the order of the rows (as the reference path's storage order is), instead of in two
-    /// colours of alternate rows. A correction then crosses the cloth in one sweep instead of
-    /// one row per sweep, and the shear springs and the chain solves stop undoing one another
-    /// on a collider's curved surface: the 512² drape holds its structural strain under 10 %
-    /// at 6 substeps of three chain rounds instead of 10 of two. The rows split into two
-    /// halves swept at the same time and the row between them, so the result is the same for
-    /// any thread count; the reference path sweeps in the same order. The same constraints and
-    /// compliance; only the order of the sweep changes. The real-time settings
-    /// (`presets::realtime_drape`) turn it on. It is off by default because with many
-    /// substeps of one chain round it is not better everywhere: the 128² `xpbd-drape` scene
-    /// (20 substeps) stores less energy with it but settles with a warp spring at 2.5 %
+    /// Project the shear springs of a grid cloth **row by row**, on the grid path and the
+    /// reference path alike: cell row after cell row, each row's diagonals and then its
+    /// anti-diagonals, a Gauss–Seidel sweep in the order of the rows, instead of in two colours
+    /// of alternate rows (grid path) or in storage order (reference path). A correction then
+    /// crosses the cloth in one sweep instead of one row per sweep, and the shear springs and
+    /// the chain solves stop undoing one another on a collider's curved surface: the 512² drape
+    /// holds its structural strain under 10 % at 6 substeps of three chain rounds instead of 10
+    /// of two. The rows split into two halves swept at the same time and the row between them,
+    /// so the result is the same for any thread count; the reference path sweeps in the same
+    /// order. The same constraints and compliance; only the order of the sweep changes. The
+    /// real-time settings (`presets::realtime_drape`) turn it on. It is off by default because
+    /// with many substeps of one chain round it is not better everywhere: the 128² `xpbd-drape`
+    /// scene (20 substeps) stores less energy with it but settles with a warp spring at 2.5 %
     /// instead of 1.5 %. Default `false`. Ignored with `shear_chains` and on a cloth that is
     /// not a grid.
     pub shear_rows: bool,

@@ -605,8 +605,7 @@ pub struct SolverDesc {
     pub implicit: ImplicitDesc,
     /// `{ iterations, tethers, tether_slack, hierarchy_levels, hierarchy_slack,
     /// structural_limit, chains, chain_iterations, chain_rounds, shear_chains, shear_rows }`
-    /// (see
-    /// [`XpbdDesc`]).
+    /// (see [`XpbdDesc`]).
     #[serde(default)]
     pub xpbd: XpbdDesc,
     /// `{ max_stretch_ratio, max_speed }`.

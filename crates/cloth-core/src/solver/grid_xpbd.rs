@@ -1138,7 +1138,7 @@ impl XpbdGrid {
             }
         };
         let cells = rows - 1;
-        let b = cells / 2;
+        let b = shear_rows_between(rows);
         {
             let [x, y, z] = &mut self.pos;
             let [l0, l1] = &mut lambdas;
@@ -2067,6 +2067,13 @@ pub(crate) struct Shared<'a> {
     /// grid: [`XpbdGrid::uniform`]), else 0: slot `g` is then read at `g mod cols`, so a pass
     /// streams one row of lengths instead of a whole array of them (the same values).
     rest_cols: usize,
+}
+
+/// The cell row that [`XpbdGrid::shear_rows`] sweeps last, between the two halves of cell
+/// rows it sweeps at the same time (`[0, b)` and `(b, rows − 1)`); the reference path sorts
+/// its shear springs into the same order with it.
+pub(crate) fn shear_rows_between(rows: usize) -> usize {
+    (rows - 1) / 2
 }
 
 /// One row of a vertical pass: the `m` pairs `(c + a_dc)` of row `a` against `(c + b_dc)` of

@@ -359,12 +359,14 @@ fn solve_springs(
         if let (true, Some((rows, cols))) = (rows_order, ctx.topology.grid())
             && sc.shear_order_key != Some((springs.len(), rows, cols))
         {
-            let between = (rows - 1) / 2;
+            let between = super::grid_xpbd::shear_rows_between(rows);
             let key = |i: u32| {
                 let s = &springs[i as usize];
                 let (a, b) = (s.a as usize, s.b as usize);
-                let anti = usize::from(b - a != cols + 1);
-                let r = a / cols;
+                // Either end first: a diagonal's ends are cols + 1 apart, an anti-diagonal's
+                // cols − 1; the cell row is the upper end's.
+                let anti = usize::from(a.abs_diff(b) != cols + 1);
+                let r = a.min(b) / cols;
                 let half = match r.cmp(&between) {
                     std::cmp::Ordering::Less => 0,
                     std::cmp::Ordering::Greater => 1,
