@@ -45,11 +45,12 @@
 //!
 //! The chains of one direction are independent. The grid path solves them in blocks of
 //! [`LANES`] chains laid out step-major (entry `(k, lane)` at `k·LANES + lane`), so every
-//! operation of the sweep runs across the lanes as one vector, two blocks at a time (their
-//! recurrences interleaved, [`solve`]); the reference path solves one chain at a time with the
-//! same function at one lane, hence the same bits. The AVX2 kernel runs the same operations
-//! written with intrinsics, each step of a block as two 8-lane halves
-//! (`simd::chains_lanes`: the 16-lane arrays took two registers per value and spilled).
+//! operation of the sweep runs across the lanes as one vector ([`solve`]); the reference path
+//! solves one chain at a time with the same function at one lane, hence the same bits. The
+//! AVX2 and AVX-512 kernels run the same operations written with intrinsics
+//! (`simd::chains_lanes`): with AVX2 each step of a block as two 8-lane halves (the 16-lane
+//! arrays took two registers per value and spilled), with AVX-512 as one vector, each step
+//! handing the next its shared particle, direction and recurrence in registers.
 
 /// Chains per block on the grid path: the lanes of the vectorised sweeps.
 pub(crate) const LANES: usize = 16;
@@ -69,17 +70,17 @@ pub(crate) fn stride(len: usize) -> usize {
     len * LANES + PAD
 }
 
-/// The most bytes two blocks may span (their [`FIELDS`] and [`SCRATCH`] arrays) to be solved
-/// interleaved ([`iterate`]): half of the 1 MiB L2 cache per core of the Zen 4 host. Two
-/// blocks of 512-particle chains span 0.9 MiB, and with the rest of a substep's data they
-/// went out of L2 between the forward pass and the back substitution: solved one after the
-/// other, each 0.45 MiB, the 512² drape ran 5–10 % faster (the 256² one, 0.45 MiB per pair,
-/// the same either way).
-pub(crate) const INTERLEAVED_BYTES: usize = 512 << 10;
+/// The most bytes the two blocks of one task of the grid path may span (their [`FIELDS`] and
+/// [`SCRATCH`] arrays): half of the 1 MiB L2 cache per core of the Zen 4 host. A task gathers
+/// its blocks, solves them and writes them back; two blocks of 512-particle chains span
+/// 0.9 MiB, and with the rest of a substep's data they went out of L2 within the task: one
+/// block per task, each 0.45 MiB, the 512² drape ran 5–10 % faster (the 256² one, 0.45 MiB
+/// per pair, the same either way).
+pub(crate) const PAIR_BYTES: usize = 512 << 10;
 
-/// Whether two blocks of arrays of `size` floats fit in [`INTERLEAVED_BYTES`].
+/// Whether two blocks of arrays of `size` floats fit in [`PAIR_BYTES`].
 pub(crate) fn pair_fits(size: usize) -> bool {
-    2 * (FIELDS + SCRATCH) * size * size_of::<f32>() <= INTERLEAVED_BYTES
+    2 * (FIELDS + SCRATCH) * size * size_of::<f32>() <= PAIR_BYTES
 }
 
 /// Arrays per block that persist between solves: x, y, z, start x, y, z, inverse mass, rest
@@ -143,24 +144,20 @@ impl<'a> Block<'a> {
     }
 }
 
-/// Solves the `L` chains of `len ≥ 2` particles of each of `N` blocks (see the module docs):
-/// one forward pass (each spring's direction, constraint value and row of the tridiagonal
-/// matrix from the current positions, eliminated right away), then one back substitution applying every
+/// Solves the `L` chains of `len ≥ 2` particles of a block (see the module docs): one forward
+/// pass (each spring's direction, constraint value and row of the tridiagonal matrix from the
+/// current positions, eliminated right away), then one back substitution applying every
 /// multiplier's change to the positions (and, with `keep`, adding it to the multipliers, which
 /// are read as zero otherwise). Plain IEEE `f32` (no fused multiply-add), the same for every
-/// lane count and every `N`: each lane's operations are the same, whatever else is solved
-/// beside it.
+/// lane count: each lane's operations are the same, whatever else is solved beside it.
 ///
-/// The elimination and the back substitution are recurrences along the chain (each step waits
-/// for the step before it: a division and a few products in the elimination, ≈ 30 cycles per
-/// step with AVX-512), so their steps of the `N` blocks are interleaved: with two blocks the
-/// processor runs two independent recurrences side by side. The elimination's steps also
-/// issue `ahead`'s prefetches, one grid entry of the next blocks per step: the memory system
-/// is idle while the recurrence waits on its divisions (the warp's next column gathers then
-/// read from L2: 9.7 → 5.5 % of a substep's samples, the 256² drape 2 % faster).
+/// The elimination's steps also issue `ahead`'s prefetches, one grid entry of the next blocks
+/// per step: the memory system has room while the step computes (the warp's next column
+/// gathers then read from L2: 9.7 → 5.5 % of a substep's samples, the 256² drape 2 %
+/// faster).
 #[inline(always)]
-pub(crate) fn solve<const L: usize, const N: usize>(
-    mut blocks: [Block<'_>; N],
+pub(crate) fn solve<const L: usize>(
+    mut block: Block<'_>,
     len: usize,
     alpha: f32,
     gamma: f32,
@@ -169,14 +166,14 @@ pub(crate) fn solve<const L: usize, const N: usize>(
 ) {
     debug_assert!(len >= 2);
     let g1 = 1.0 + gamma;
-    // 1. The forward pass down the chains, the blocks' steps interleaved: step k of a block
-    // first computes spring k (its direction, constraint value, right-hand side, diagonal and
+    // 1. The forward pass down the chains: step k first computes spring k (its direction, constraint value, right-hand side, diagonal and
     // coupling with spring k − 1: no dependence on the elimination's recurrence, so the
     // processor overlaps them with it), then eliminates it. What the elimination reads was
     // written a moment before and is still in L1; computed in a pass of their own, the
     // springs' diagonals, couplings and right-hand sides went out to L2 and came back.
     {
-        let mut views = blocks.each_mut().map(|block| {
+        let mut view = {
+            let block = &mut block;
             (
                 &block.w.as_chunks::<L>().0[..len],
                 &block.rest.as_chunks::<L>().0[..len],
@@ -190,15 +187,15 @@ pub(crate) fn solve<const L: usize, const N: usize>(
                 &mut block.cp.as_chunks_mut::<L>().0[..len],
                 &mut block.dp.as_chunks_mut::<L>().0[..len],
             )
-        });
-        // Spring k of block i, from spring k − 1's direction `n_prev`: writes its direction
+        };
+        // Spring k, from spring k − 1's direction `n_prev`: writes its direction
         // and gives its coupling with spring k − 1 (through particle k), its right-hand side
         // and its diagonal, which the elimination's step takes in registers.
         macro_rules! spring {
-            ($i:expr, $k:expr, $n_prev:expr) => {{
-                let (i, k): (usize, usize) = ($i, $k);
+            ($k:expr, $n_prev:expr) => {{
+                let k: usize = $k;
                 let n_prev: [[f32; L]; 3] = $n_prev;
-                let (w, rest, [px, py, pz], [xs, ys, zs], lam, [nx, ny, nz], ..) = &mut views[i];
+                let (w, rest, [px, py, pz], [xs, ys, zs], lam, [nx, ny, nz], ..) = &mut view;
                 let (a, b) = (k, k + 1);
                 // Local copies: the lane loop then reads and writes only locals and
                 // vectorises without alias checks.
@@ -248,7 +245,7 @@ pub(crate) fn solve<const L: usize, const N: usize>(
                 (e_k, rhs_k, diag_k)
             }};
         }
-        // The elimination's step k of block i, from the reciprocal `m_prev` of spring k − 1's
+        // The elimination's step k, from the reciprocal `m_prev` of spring k − 1's
         // eliminated diagonal and its right-hand side `dp_prev`: the eliminated right-hand
         // side replaces `dp[k]`, the coupling `c` goes into `cp[k − 1]` (k > 0) and the
         // reciprocal of the eliminated diagonal into `cp[k]` (read back as `m_prev` by step
@@ -257,11 +254,11 @@ pub(crate) fn solve<const L: usize, const N: usize>(
         // L1), not through arrays carried in the loop, which the compiler split into scalars
         // or spilled.
         macro_rules! eliminate {
-            ($i:expr, $k:expr, $spring:expr, $m_prev:expr, $dp_prev:expr) => {{
-                let (i, k): (usize, usize) = ($i, $k);
+            ($k:expr, $spring:expr, $m_prev:expr, $dp_prev:expr) => {{
+                let k: usize = $k;
                 let (e_k, rhs_k, diag_k): ([f32; L], [f32; L], [f32; L]) = $spring;
                 let (m_prev, dp_prev): ([f32; L], [f32; L]) = ($m_prev, $dp_prev);
-                let (.., cp, dp) = &mut views[i];
+                let (.., cp, dp) = &mut view;
                 let (mut c_k, mut m_k, mut d) = ([0.0_f32; L], [0.0_f32; L], [0.0_f32; L]);
                 for l in 0..L {
                     let e = e_k[l];
@@ -278,10 +275,8 @@ pub(crate) fn solve<const L: usize, const N: usize>(
                 cp[k] = m_k;
             }};
         }
-        for i in 0..N {
-            let spring = spring!(i, 0, [[0.0; L]; 3]);
-            eliminate!(i, 0, spring, [1.0; L], [0.0; L]);
-        }
+        let spring = spring!(0, [[0.0; L]; 3]);
+        eliminate!(0, spring, [1.0; L], [0.0; L]);
         if let Some(ahead) = ahead {
             ahead.row(0);
             ahead.row(len - 1);
@@ -292,25 +287,21 @@ pub(crate) fn solve<const L: usize, const N: usize>(
             if let Some(ahead) = ahead {
                 ahead.row(k);
             }
-            for i in 0..N {
-                let n = &views[i].5;
-                let spring = spring!(i, k, [n[0][k - 1], n[1][k - 1], n[2][k - 1]]);
-                let (.., cp, dp) = &views[i];
-                eliminate!(i, k, spring, cp[k - 1], dp[k - 1]);
-            }
+            let n = &view.5;
+            let spring = spring!(k, [n[0][k - 1], n[1][k - 1], n[2][k - 1]]);
+            let (.., cp, dp) = &view;
+            eliminate!(k, spring, cp[k - 1], dp[k - 1]);
         }
-        for (.., [nx, ny, nz], cp, dp) in &mut views {
-            // Entry len − 1 (past the last spring): a zero change and direction, which the
-            // back substitution's first step reads as its successor's.
-            dp[len - 1] = [0.0; L];
-            (nx[len - 1], ny[len - 1], nz[len - 1]) = ([0.0; L], [0.0; L], [0.0; L]);
-            cp[len - 2] = [0.0; L];
-        }
+        let (.., [nx, ny, nz], cp, dp) = &mut view;
+        // Entry len − 1 (past the last spring): a zero change and direction, which the back
+        // substitution's first step reads as its successor's.
+        dp[len - 1] = [0.0; L];
+        (nx[len - 1], ny[len - 1], nz[len - 1]) = ([0.0; L], [0.0; L], [0.0; L]);
+        cp[len - 2] = [0.0; L];
     }
-    // 2. The back substitution, the blocks' steps interleaved. The multipliers' changes
-    // replace the right-hand sides in place (`dp[k]` becomes Δλ_k, read by step k − 1 as its
-    // successor's).
-    let mut parts = blocks.map(|block| {
+    // 2. The back substitution. The multipliers' changes replace the right-hand sides in place
+    // (`dp[k]` becomes Δλ_k, read by step k − 1 as its successor's).
+    let ([xs, ys, zs], w, lam, [nx, ny, nz], cp, dp) = {
         let Block {
             x,
             w,
@@ -328,9 +319,9 @@ pub(crate) fn solve<const L: usize, const N: usize>(
             &cp.as_chunks::<L>().0[..len],
             &mut dp.as_chunks_mut::<L>().0[..len],
         )
-    });
+    };
     for k in (0..len - 1).rev() {
-        for ([xs, ys, zs], w, lam, [nx, ny, nz], cp, dp) in &mut parts {
+        {
             let b = k + 1;
             let dl_next = dp[b];
             // Whole-lane steps (simple loops, each one vector operation per lane group).
@@ -357,7 +348,7 @@ pub(crate) fn solve<const L: usize, const N: usize>(
             }
         }
     }
-    for ([xs, ys, zs], w, _, [nx, ny, nz], _, dp) in &mut parts {
+    {
         let (dl_first, n_first) = (dp[0], [nx[0], ny[0], nz[0]]);
         for l in 0..L {
             let s = w[0][l] * dl_first[l];
@@ -368,17 +359,17 @@ pub(crate) fn solve<const L: usize, const N: usize>(
     }
 }
 
-/// [`solve`] at [`LANES`] lanes (the grid path's blocks), `N` taken from `blocks`.
+/// [`solve`] at [`LANES`] lanes (the grid path's blocks).
 #[inline(always)]
-pub(crate) fn solve_lanes<const N: usize>(
-    blocks: [Block<'_>; N],
+pub(crate) fn solve_lanes(
+    block: Block<'_>,
     len: usize,
     alpha: f32,
     gamma: f32,
     keep: bool,
     ahead: Option<&Ahead<'_>>,
 ) {
-    solve::<LANES, N>(blocks, len, alpha, gamma, keep, ahead);
+    solve::<LANES>(block, len, alpha, gamma, keep, ahead);
 }
 
 /// The grid entries the next blocks of a direction will gather, fetched into L2 ahead of
@@ -442,10 +433,8 @@ impl Multipliers {
 /// multipliers adding up over the iterations (and over the rounds, `multipliers`).
 ///
 /// `chunk` holds one or two blocks ([`FIELDS`] arrays of `size` each, one after the other),
-/// solved together ([`solve`] interleaves their recurrences) where the kernel gains from it
-/// ([`crate::simd::chains_interleaved`]) and the two fit in [`INTERLEAVED_BYTES`], else one
-/// after the other (the same bits either way);
-/// `scratch` holds [`SCRATCH`] arrays per block. `ahead`: the grid entries the next blocks
+/// solved one after the other, each iteration in turn; `scratch` holds [`SCRATCH`] arrays per
+/// block. `ahead`: the grid entries the next blocks
 /// will gather, fetched into L2 during the first iteration's elimination ([`Ahead`]).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn iterate(
@@ -466,24 +455,13 @@ pub(crate) fn iterate(
     }
     let keep = multipliers != Multipliers::Unused;
     for iteration in 0..iterations {
-        // The next blocks' entries fetched during the first iteration only.
-        let ahead = ahead.filter(|_| iteration == 0);
-        let mut blocks = chunk.chunks_exact_mut(FIELDS * size);
-        let mut works = scratch.chunks_exact_mut(SCRATCH * size);
-        let mut next = || {
-            let (b, w) = (blocks.next()?, works.next().expect("scratch per block"));
-            Some(Block::split(b, w, size))
-        };
-        let first = next().expect("a block");
-        match next() {
-            Some(second) if pair_fits(size) && crate::simd::chains_interleaved(kernel) => {
-                crate::simd::xpbd_chains(kernel, [first, second], len, alpha, gamma, keep, ahead);
-            }
-            Some(second) => {
-                crate::simd::xpbd_chains(kernel, [first], len, alpha, gamma, keep, ahead);
-                crate::simd::xpbd_chains(kernel, [second], len, alpha, gamma, keep, None);
-            }
-            None => crate::simd::xpbd_chains(kernel, [first], len, alpha, gamma, keep, ahead),
+        let blocks = chunk.chunks_exact_mut(FIELDS * size);
+        let works = scratch.chunks_exact_mut(SCRATCH * size);
+        for (b, (block, work)) in blocks.zip(works).enumerate() {
+            // The next blocks' entries fetched during the first block's first iteration only.
+            let ahead = ahead.filter(|_| iteration == 0 && b == 0);
+            let block = Block::split(block, work, size);
+            crate::simd::xpbd_chains(kernel, block, len, alpha, gamma, keep, ahead);
         }
     }
 }
@@ -761,8 +739,8 @@ fn solve_line(
     }
     for _ in 0..iterations {
         let (fields, work) = scratch.split_at_mut(FIELDS * len);
-        solve::<1, 1>(
-            [Block::split(fields, work, len)],
+        solve::<1>(
+            Block::split(fields, work, len),
             len,
             alpha,
             gamma,
@@ -795,8 +773,8 @@ pub(crate) fn transpose16(src: &[f32], src_stride: usize, dst: &mut [f32], dst_s
 mod tests {
     use super::*;
 
-    /// Two blocks are solved interleaved up to chains of 291 particles (the docs' and the
-    /// long-chain bit test's threshold: the 320-particle strip takes single blocks, 256²
+    /// A task of the grid path takes two blocks up to chains of 291 particles (the docs' and
+    /// the long-chain bit test's threshold: the 320-particle strip takes single blocks, 256²
     /// pairs). Exact arithmetic on the sizes, no tolerance.
     #[test]
     fn pairs_stop_past_291_particles() {
@@ -829,8 +807,8 @@ mod tests {
             }
         }
         for _ in 0..iterations {
-            solve::<1, 1>(
-                [Block::split(&mut fields, &mut work, len)],
+            solve::<1>(
+                Block::split(&mut fields, &mut work, len),
                 len,
                 0.01,
                 0.05,

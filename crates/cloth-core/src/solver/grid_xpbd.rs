@@ -694,9 +694,9 @@ impl XpbdGrid {
             scratch.reset(blocks * FIELDS * size, CHAIN_SLOT + class);
             self.chain_statics[class] = false;
         }
-        // Blocks per task: a pair, solved together (their recurrences interleaved,
-        // `chains::solve`), when two fit in L2; else one (gathered, solved and scattered before
-        // the next is gathered).
+        // Blocks per task: a pair (gathered, solved one after the other, scattered) when two
+        // fit in half of L2; else one (gathered, solved and scattered before the next is
+        // gathered).
         let per = if chains::pair_fits(size) { PAIR } else { 1 };
         let pair = per * FIELDS * size;
         self.chain_work
@@ -1499,10 +1499,9 @@ pub(crate) fn velocities(v: &mut [f32], x: &[f32], x0: &[f32], w: &[f32], h: f32
     }
 }
 
-/// Blocks of chains per task of the chain solves, solved together: the elimination and the
-/// back substitution are recurrences along the chains, and two blocks' run side by side
-/// (`chains::solve`). One block per task where two would not stay in L2
-/// (`chains::pair_fits`: chains longer than 291 particles).
+/// Blocks of chains per task of the chain solves: two, gathered together and solved one after
+/// the other. One block per task where two would not stay in L2 (`chains::pair_fits`: chains
+/// longer than 291 particles).
 const PAIR: usize = 2;
 
 /// Lanes per chunk of [`velocities`].
