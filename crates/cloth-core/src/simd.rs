@@ -2371,8 +2371,9 @@ dispatched! {
 
 /// Transposes one tile of 16 × 16 floats: `dst[k·dst_stride + l] = src[l·src_stride + k]`
 /// for `k, l < 16` (rows `l` of `src`, `src_stride` apart, become columns of `dst`). With
-/// AVX (any kernel but the portable one, on a CPU that has it) as four 8 × 8 transposes in
-/// registers, else element by element ([`chains::transpose16`]); the same values either way.
+/// AVX-512 in 16 registers ([`transpose16_avx512`]), with AVX (the AVX2 kernel, or AVX-512's
+/// on a CPU without it) as four 8 × 8 transposes in registers, else element by element
+/// ([`chains::transpose16`]); the same values either way.
 pub(crate) fn transpose16(
     kernel: Kernel,
     src: &[f32],
@@ -2381,6 +2382,11 @@ pub(crate) fn transpose16(
     dst_stride: usize,
 ) {
     match kernel {
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx512 if Kernel::Avx512.is_available() => {
+            // SAFETY: the CPU has AVX-512 F (checked on the line above).
+            unsafe { transpose16_avx512(src, src_stride, dst, dst_stride) }
+        }
         #[cfg(target_arch = "x86_64")]
         Kernel::Avx2 | Kernel::Avx512 if Kernel::Avx2.is_available() => {
             // SAFETY: the CPU has AVX2 (checked on the line above), which includes AVX.
@@ -2411,6 +2417,62 @@ fn transpose16_avx(src: &[f32], src_stride: usize, dst: &mut [f32], dst_stride: 
                     .expect("16 floats per destination row");
                 *out = bytemuck::cast::<__m256, [f32; 8]>(o);
             }
+        }
+    }
+}
+
+/// [`transpose16`] with AVX-512: the 16 rows in 16 registers, transposed in four rounds of 16
+/// shuffles (pairs of rows interleaved, then quadruples, within each 128-bit lane; then the
+/// lanes, twice), where the AVX copy takes four 8 × 8 transposes (96 shuffles, and 64 loads
+/// and 64 stores of half rows).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn transpose16_avx512(src: &[f32], src_stride: usize, dst: &mut [f32], dst_stride: usize) {
+    use std::arch::x86_64::{
+        __m512, _mm512_loadu_ps, _mm512_setzero_ps, _mm512_shuffle_f32x4, _mm512_shuffle_ps,
+        _mm512_storeu_ps, _mm512_unpackhi_ps, _mm512_unpacklo_ps,
+    };
+    assert!(
+        src.len() >= 15 * src_stride + 16 && dst.len() >= 15 * dst_stride + 16,
+        "a tile of 16 rows of 16 floats"
+    );
+    let mut r: [__m512; 16] = [_mm512_setzero_ps(); 16];
+    let mut t = r;
+    // SAFETY: every row read or written lies inside its slice (asserted above).
+    unsafe {
+        for (i, r) in r.iter_mut().enumerate() {
+            *r = _mm512_loadu_ps(src.as_ptr().add(i * src_stride));
+        }
+    }
+    // Pairs of rows interleaved within each 128-bit lane.
+    for i in (0..16).step_by(2) {
+        t[i] = _mm512_unpacklo_ps(r[i], r[i + 1]);
+        t[i + 1] = _mm512_unpackhi_ps(r[i], r[i + 1]);
+    }
+    // Quadruples: register 4g + q holds, in its lane j, column 4j + q of rows 4g .. 4g + 3.
+    for g in (0..16).step_by(4) {
+        r[g] = _mm512_shuffle_ps::<0x44>(t[g], t[g + 2]);
+        r[g + 1] = _mm512_shuffle_ps::<0xEE>(t[g], t[g + 2]);
+        r[g + 2] = _mm512_shuffle_ps::<0x44>(t[g + 1], t[g + 3]);
+        r[g + 3] = _mm512_shuffle_ps::<0xEE>(t[g + 1], t[g + 3]);
+    }
+    // Lanes 0 and 2 (0x88) and lanes 1 and 3 (0xDD) of the quadruples of rows 8h .. 8h + 3
+    // and 8h + 4 .. 8h + 7.
+    for h in [0, 8] {
+        for q in 0..4 {
+            t[h + q] = _mm512_shuffle_f32x4::<0x88>(r[h + q], r[h + 4 + q]);
+            t[h + 4 + q] = _mm512_shuffle_f32x4::<0xDD>(r[h + q], r[h + 4 + q]);
+        }
+    }
+    // Column c < 8 from lanes 0 and 2 of t[c] and t[8 + c], column 8 + c from lanes 1 and 3.
+    for c in 0..8 {
+        r[c] = _mm512_shuffle_f32x4::<0x88>(t[c], t[8 + c]);
+        r[8 + c] = _mm512_shuffle_f32x4::<0xDD>(t[c], t[8 + c]);
+    }
+    // SAFETY: as above.
+    unsafe {
+        for (c, col) in r.into_iter().enumerate() {
+            _mm512_storeu_ps(dst.as_mut_ptr().add(c * dst_stride), col);
         }
     }
 }
