@@ -189,10 +189,11 @@ fn align_frame() {
 /// baseline target. Both compiled copies start with [`align_frame`]. Written
 /// `dispatched! { /// docs  fn NAME / AVX2 / AVX512(args…) -> Ret = GENERIC; }`, with optional
 /// const parameters after the names (`fn NAME / AVX2 / AVX512 <const N: usize>(args…)`),
-/// which `GENERIC` infers from the arguments. `= GENERIC, avx2 = LANES;` runs instead, in the
-/// AVX2 copy, `LANES::<V8, consts…>(args…)`: a body written with the [`Lanes`] trait's
-/// intrinsics (an `unsafe fn` whose contract is to run compiled with its lanes' instruction
-/// set, which the AVX2 copy is).
+/// which `GENERIC` infers from the arguments. `= GENERIC, lanes = LANES;` runs instead
+/// `LANES::<V8, consts…>(args…)` in the AVX2 copy and `LANES::<V16, consts…>(args…)` in the
+/// AVX-512 one: a body written with the [`Lanes`] trait's intrinsics (an `unsafe fn` whose
+/// contract is to run compiled with its lanes' instruction set, which each copy is); the
+/// portable kernel still runs `GENERIC`.
 macro_rules! dispatched {
     (
         $(#[$attr:meta])*
@@ -203,20 +204,6 @@ macro_rules! dispatched {
         dispatched! {
             @emit [$(#[$attr])*] $name $avx2 $avx512 [$($(const $c: $cty),*)?]
             ($($arg: $ty),*) [$($ret)?] $generic { $generic($($arg),*) }
-        }
-    };
-    (
-        $(#[$attr:meta])*
-        fn $name:ident / $avx2:ident / $avx512:ident
-            $(<$(const $c:ident: $cty:ty),*>)? ($($arg:ident: $ty:ty),* $(,)?)
-            $(-> $ret:ty)? = $generic:path, avx2 = $lanes:ident;
-    ) => {
-        dispatched! {
-            @emit [$(#[$attr])*] $name $avx2 $avx512 [$($(const $c: $cty),*)?]
-            ($($arg: $ty),*) [$($ret)?] $generic {
-                // SAFETY: this copy is compiled with AVX2 (the lanes' operations need no more).
-                unsafe { $lanes::<V8 $($(, $c)*)?>($($arg),*) }
-            }
         }
     };
     (
@@ -1116,7 +1103,8 @@ unsafe fn store3<V: Lanes>(p: [*mut f32; 3], c0: usize, f: [V; 3]) {
     }
 }
 
-/// A force chunk at column `c0` of three ring rows.
+/// A vector at entry `c0` of each of three arrays: a force chunk at column `c0` of three ring
+/// rows, or a position's or a direction's components at a chain block's entry.
 ///
 /// # Safety
 /// As [`Lanes`]; `N` floats from `p[k] + c0` readable.
@@ -1950,22 +1938,6 @@ struct ChainConsts<V> {
     keep: bool,
 }
 
-/// Entry `e` of three arrays (a position's or a direction's components).
-///
-/// # Safety
-/// As [`Lanes`]; entry `e` inside each array.
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-unsafe fn load3<V: Lanes>(a: [*const f32; 3], e: usize) -> [V; 3] {
-    unsafe {
-        [
-            V::load(a[0].add(e)),
-            V::load(a[1].add(e)),
-            V::load(a[2].add(e)),
-        ]
-    }
-}
-
 /// What a step of the forward pass takes from one end of its spring: the particle's position,
 /// its move since the substep's start (`x − x_prev`, per component) and its inverse mass.
 #[cfg(target_arch = "x86_64")]
@@ -1984,8 +1956,8 @@ struct ChainEnd<V> {
 #[inline(always)]
 unsafe fn chain_end<V: Lanes>(p: &ChainPtrs, e: usize) -> ChainEnd<V> {
     unsafe {
-        let x = load3::<V>(p.x.map(<*mut f32>::cast_const), e);
-        let prev = load3::<V>(p.prev, e);
+        let x = ring::<V>(p.x.map(<*mut f32>::cast_const), e);
+        let prev = ring::<V>(p.prev, e);
         let moved = [
             V::sub(x[0], prev[0]),
             V::sub(x[1], prev[1]),
@@ -2223,7 +2195,7 @@ unsafe fn chains_lanes<V: Lanes>(
                     let q = e - L;
                     ChainCarry {
                         end: chain_end::<V>(p, e),
-                        n: load3::<V>(p.n.map(<*mut f32>::cast_const), q),
+                        n: ring::<V>(p.n.map(<*mut f32>::cast_const), q),
                         m: V::load(p.cp.add(q)),
                         dp: V::load(p.dp.add(q)),
                     }
@@ -2254,14 +2226,14 @@ unsafe fn chains_lanes<V: Lanes>(
                 } else {
                     (
                         V::load(p.dp.add(b)),
-                        load3::<V>(p.n.map(<*mut f32>::cast_const), b),
+                        ring::<V>(p.n.map(<*mut f32>::cast_const), b),
                     )
                 };
                 let dl = V::sub(V::load(p.dp.add(k)), V::mul(V::load(p.cp.add(k)), dl_next));
                 if !carry {
                     V::store(p.dp.add(k), dl);
                 }
-                let n_k = load3::<V>(p.n.map(<*mut f32>::cast_const), k);
+                let n_k = ring::<V>(p.n.map(<*mut f32>::cast_const), k);
                 let wb = V::load(p.w.add(b));
                 let (s, t) = (V::mul(wb, dl), V::mul(wb, dl_next));
                 for c in 0..3 {
@@ -2283,7 +2255,7 @@ unsafe fn chains_lanes<V: Lanes>(
             } else {
                 (
                     V::load(p.dp.add(e)),
-                    load3::<V>(p.n.map(<*mut f32>::cast_const), e),
+                    ring::<V>(p.n.map(<*mut f32>::cast_const), e),
                 )
             };
             let t = V::mul(V::load(p.w.add(e)), dl);
