@@ -1210,7 +1210,10 @@ dispatched! {
 /// [`xpbd_pairs`]' AVX-512 kernel for compliant pairs: 16 pairs `a[i]`–`b[i]` per vector,
 /// the last `m mod 16` by masked loads and stores (the compiler's loop ran those as 4-wide
 /// and scalar leftovers: about 30 % of its time on rows of 255 pairs), with
-/// [`grid_xpbd::pairs`]' arithmetic in its order (the same bits).
+/// [`grid_xpbd::pairs`]' arithmetic in its order (the same bits). Whole vectors load and store
+/// plainly: with masked loads and stores for every vector, the shear rows' passes (each row
+/// read right after the row above wrote it) took a third more time, 0.41–0.42 of the chain
+/// solve's samples against 0.27–0.28 at 512² (a load waits on an earlier masked store).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 fn pairs_avx512(
@@ -1248,11 +1251,23 @@ fn pairs_avx512(
     let load = |k: __mmask16, v: &[f32], i: usize| -> __m512 {
         // SAFETY: `v` holds at least `m` entries (asserted above) and the mask keeps lanes
         // below `m - i` only; masked-off lanes are not read.
-        unsafe { _mm512_maskz_loadu_ps(k, v.as_ptr().add(i)) }
+        unsafe {
+            if k == 0xFFFF {
+                std::arch::x86_64::_mm512_loadu_ps(v.as_ptr().add(i))
+            } else {
+                _mm512_maskz_loadu_ps(k, v.as_ptr().add(i))
+            }
+        }
     };
     let store = |k: __mmask16, v: &mut [f32], i: usize, x: __m512| {
         // SAFETY: as for `load`: lanes below `m - i` only, inside `v`.
-        unsafe { _mm512_mask_storeu_ps(v.as_mut_ptr().add(i), k, x) }
+        unsafe {
+            if k == 0xFFFF {
+                std::arch::x86_64::_mm512_storeu_ps(v.as_mut_ptr().add(i), x);
+            } else {
+                _mm512_mask_storeu_ps(v.as_mut_ptr().add(i), k, x);
+            }
+        }
     };
     for i in (0..m).step_by(16) {
         let k: __mmask16 = if m - i >= 16 {
