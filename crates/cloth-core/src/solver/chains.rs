@@ -73,9 +73,10 @@ pub(crate) fn stride(len: usize) -> usize {
 /// The most bytes the two blocks of one task of the grid path may span (their [`FIELDS`] and
 /// [`SCRATCH`] arrays): half of the 1 MiB L2 cache per core of the Zen 4 host. A task gathers
 /// its blocks, solves them and writes them back; two blocks of 512-particle chains span
-/// 0.9 MiB, and with the rest of a substep's data they went out of L2 within the task: one
-/// block per task, each 0.45 MiB, the 512² drape ran 5–10 % faster (the 256² one, 0.45 MiB
-/// per pair, the same either way).
+/// 0.9 MiB, and when a task's two blocks were solved interleaved they went out of L2 between
+/// the forward pass and the back substitution: one block per task, each 0.45 MiB, the 512²
+/// drape ran 5–10 % faster. At 256² (0.45 MiB per pair) one or two blocks per task cost the
+/// same, with the blocks solved interleaved and with them solved one after the other.
 pub(crate) const PAIR_BYTES: usize = 512 << 10;
 
 /// Whether two blocks of arrays of `size` floats fit in [`PAIR_BYTES`].
@@ -166,9 +167,10 @@ pub(crate) fn solve<const L: usize>(
 ) {
     debug_assert!(len >= 2);
     let g1 = 1.0 + gamma;
-    // 1. The forward pass down the chains: step k first computes spring k (its direction, constraint value, right-hand side, diagonal and
-    // coupling with spring k − 1: no dependence on the elimination's recurrence, so the
-    // processor overlaps them with it), then eliminates it. What the elimination reads was
+    // 1. The forward pass down the chains: step k first computes spring k (its direction,
+    // constraint value, right-hand side, diagonal and coupling with spring k − 1: no
+    // dependence on the elimination's recurrence, so the processor overlaps them with it),
+    // then eliminates it. What the elimination reads was
     // written a moment before and is still in L1; computed in a pass of their own, the
     // springs' diagonals, couplings and right-hand sides went out to L2 and came back.
     {
@@ -321,41 +323,37 @@ pub(crate) fn solve<const L: usize>(
         )
     };
     for k in (0..len - 1).rev() {
-        {
-            let b = k + 1;
-            let dl_next = dp[b];
-            // Whole-lane steps (simple loops, each one vector operation per lane group).
-            let mut dl = [0.0_f32; L];
+        let b = k + 1;
+        let dl_next = dp[b];
+        // Whole-lane steps (simple loops, each one vector operation per lane group).
+        let mut dl = [0.0_f32; L];
+        for l in 0..L {
+            dl[l] = dp[k][l] - cp[k][l] * dl_next[l];
+        }
+        dp[k] = dl;
+        let wb = w[b];
+        for (x, (n_k, n_next)) in [&mut xs[b], &mut ys[b], &mut zs[b]].into_iter().zip([
+            (&nx[k], &nx[b]),
+            (&ny[k], &ny[b]),
+            (&nz[k], &nz[b]),
+        ]) {
+            // Through a local copy (no alias checks in the lane loop).
+            let mut v = *x;
+            apply(&mut v, &wb, &dl, n_k, &dl_next, n_next);
+            *x = v;
+        }
+        if keep {
             for l in 0..L {
-                dl[l] = dp[k][l] - cp[k][l] * dl_next[l];
-            }
-            dp[k] = dl;
-            let wb = w[b];
-            for (x, (n_k, n_next)) in [&mut xs[b], &mut ys[b], &mut zs[b]].into_iter().zip([
-                (&nx[k], &nx[b]),
-                (&ny[k], &ny[b]),
-                (&nz[k], &nz[b]),
-            ]) {
-                // Through a local copy (no alias checks in the lane loop).
-                let mut v = *x;
-                apply(&mut v, &wb, &dl, n_k, &dl_next, n_next);
-                *x = v;
-            }
-            if keep {
-                for l in 0..L {
-                    lam[k][l] += dl[l];
-                }
+                lam[k][l] += dl[l];
             }
         }
     }
-    {
-        let (dl_first, n_first) = (dp[0], [nx[0], ny[0], nz[0]]);
-        for l in 0..L {
-            let s = w[0][l] * dl_first[l];
-            xs[0][l] -= s * n_first[0][l];
-            ys[0][l] -= s * n_first[1][l];
-            zs[0][l] -= s * n_first[2][l];
-        }
+    let (dl_first, n_first) = (dp[0], [nx[0], ny[0], nz[0]]);
+    for l in 0..L {
+        let s = w[0][l] * dl_first[l];
+        xs[0][l] -= s * n_first[0][l];
+        ys[0][l] -= s * n_first[1][l];
+        zs[0][l] -= s * n_first[2][l];
     }
 }
 
@@ -434,8 +432,8 @@ impl Multipliers {
 ///
 /// `chunk` holds one or two blocks ([`FIELDS`] arrays of `size` each, one after the other),
 /// solved one after the other, each iteration in turn; `scratch` holds [`SCRATCH`] arrays per
-/// block. `ahead`: the grid entries the next blocks
-/// will gather, fetched into L2 during the first iteration's elimination ([`Ahead`]).
+/// block. `ahead`: the grid entries the next blocks will gather, fetched into L2 during the
+/// first block's first iteration ([`Ahead`]).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn iterate(
     chunk: &mut [f32],
