@@ -1,5 +1,5 @@
 // The timing experiment of the fiftieth round (docs/performance.md): appended to crates/cloth-core/src/solver/chains.rs as an ignored test and run with
-// cargo test --release -p cloth-core --lib chain_step_cost -- --ignored --nocapture (PAIR=1: two blocks per call, in the round's first form; PAD=n: the scratch n floats further on).
+// cargo test --release -p cloth-core --lib chain_step_cost -- --ignored --nocapture (PAD=n: the scratch n floats further on; the PAIR switch of the round's first form, two blocks per call, has no effect since the solve takes one block).
 // It prints the best of 7 timings of one block's solve per chain step; not a test of the crate (timings are not tests).
 
 #[cfg(test)]

@@ -2222,10 +2222,17 @@ unsafe fn chains_lanes<V: Lanes>(
         }
         for h in 0..parts {
             let (last, before) = ((len - 1) * L + h * V::N, (len - 2) * L + h * V::N);
-            V::store(p.dp.add(last), zero);
-            for n in p.n {
-                V::store(n.add(last), zero);
+            if !carry {
+                // Entry len − 1 (past the last spring): a zero change and direction, which the
+                // back substitution's first step reads as its successor's (with `carry` it
+                // starts from zeros in registers).
+                V::store(p.dp.add(last), zero);
+                for n in p.n {
+                    V::store(n.add(last), zero);
+                }
             }
+            // The last spring's coupling with the one past it: zero (the scratch may hold
+            // anything, and the back substitution multiplies it by a zero change).
             V::store(p.cp.add(before), zero);
         }
         // The back substitution, from the last spring (its successor's change and direction

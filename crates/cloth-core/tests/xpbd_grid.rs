@@ -83,8 +83,7 @@ fn grid_path_is_bit_identical_across_threads_and_kernels() {
     config.xpbd.structural_limit = Some(0.02);
     rounds.set_config(config).expect("config");
     // Chains too long for two blocks per task (a pair would not fit `chains::PAIR_BYTES`):
-    // one block per task. A strip of 24 × 320 particles, the
-    // same settings.
+    // one block per task. A strip of 24 × 320 particles, the same settings.
     let mut scene = cloth_core::scene::builtin("drape").expect("built-in");
     scene.cloth.resolution = [320, 24];
     scene.solver.kind = Integrator::Xpbd.name().into();
