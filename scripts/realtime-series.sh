@@ -12,7 +12,7 @@
 # solves per sweep (xpbd.chain_rounds, default 1), e.g. 6:0:chains:1:2:2, and a seventh
 # `shear` to solve the shear springs as chains along the diagonals (xpbd.shear_chains), e.g.
 # 20:0:chains:1:1:1:shear, or `rows` to sweep them row by row (xpbd.shear_rows, as the real-time
-# settings do), e.g. 6:0:chains:1:2:3:rows (issue 7's 512² setting; 256²: 3:0:chains:1:2:2:rows).
+# settings do), e.g. 4:0:chains:1:2:5:rows (issue 7's 512² setting; 256²: 3:0:chains:1:2:2:rows).
 # The last column is the springs' elastic energy at the end (J): a drape that found its shape
 # stores little (0.2 J at 256² with 24 substeps), one whose cells collapsed in shear much more.
 # p99.9% and max% are the strain of the last frame; late_max% is the largest structural strain of

@@ -83,7 +83,7 @@ pub fn drape(n: usize, integrator: Integrator) -> Result<Simulation> {
 /// by row (`xpbd.shear_rows`) and the 2 % structural strain limit
 /// (`xpbd.structural_limit`); the scene's global damping, set for its native 48², scaled by
 /// (48/n)² so that the cloth's total damping, and so its fall, is the same at every
-/// resolution. 3 substeps of 2 rounds meet the strain figures at 256², 6 of 3 at 512².
+/// resolution. 3 substeps of 2 rounds meet the strain figures at 256², 4 of 5 at 512².
 ///
 /// # Errors
 /// As [`drape`], and [`ClothError::InvalidArgument`] for `substeps` outside

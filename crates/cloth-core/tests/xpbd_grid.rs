@@ -425,6 +425,21 @@ fn real_time_drape_setting_meets_the_strain_figures_at_256() {
     assert!(deepest < 0.008, "penetration {deepest}");
 }
 
+/// Issue 7's real-time drape at 512² with the README's setting: as at 256² above, with 4
+/// substeps of 5 chain rounds (the damping scaled by (48/512)²). The 512² cloth needs about
+/// 20 chain rounds per frame to hold its strain where it passes over the ball: 4 substeps of 4
+/// rounds leave the settled maximum far past 10 % (measured 270 %), and so do 5 of 3 (114 %);
+/// 4 of 5 hold it (measured 6.3 %, p99.9 1.1 %).
+/// Tolerances: the issue's figures (p99.9 < 5 %, max < 10 %, penetration < 8 mm).
+#[test]
+fn real_time_drape_setting_meets_the_strain_figures_at_512() {
+    let (p999, late_max, deepest) =
+        drape_figures(presets::realtime_drape(512, 4, 5).expect("drape"));
+    assert!(p999 < 0.05, "p99.9 structural strain {p999}");
+    assert!(late_max < 0.10, "settled structural maximum {late_max}");
+    assert!(deepest < 0.008, "penetration {deepest}");
+}
+
 /// The order of the shear sweep is what lets the setting above meet the figures: the same
 /// drape (3 substeps of two chain rounds of two Newton iterations, the 2 % limit) with the
 /// shear springs swept in two colours of alternate rows (`xpbd.shear_rows = false`, the
