@@ -760,7 +760,24 @@ impl XpbdGrid {
                             kernel,
                         );
                     }
-                    solve(chunk, None);
+                    // The tiles the next pair's hand-off reads from the warp's blocks, fetched
+                    // into L2 during this pair's solve (as the warp's are).
+                    let next = (p + 1) * per;
+                    let ahead = from.filter(|_| next < blocks).map(|warp| chains::Ahead {
+                        fields: [None; 6],
+                        first: 0,
+                        stride: 0,
+                        span: 0,
+                        // The warp's chains are `rows` long.
+                        tiles: Some(chains::Tiles::new(
+                            warp,
+                            chains::stride(rows),
+                            next,
+                            per.min(blocks - next),
+                            len,
+                        )),
+                    });
+                    solve(chunk, ahead.as_ref());
                     for (h, block) in chunk.chunks_exact(FIELDS * size).enumerate() {
                         let mine = h * LANES * cols..;
                         // Positions (fields 0, 1, 2; not `in_blocks`) and, when kept,
@@ -829,16 +846,22 @@ impl XpbdGrid {
                 }
                 // The next pair's columns (most often this thread's next task: rayon hands
                 // each thread a contiguous range) fetched into L2 during this pair's solve,
-                // when they come from the rows.
+                // those it reads from the rows and the tiles it takes from the weft's blocks.
                 let next = (p + 1) * per * LANES;
-                let ahead = (next < count && (from.is_none() || starts)).then(|| {
+                let ahead = (next < count).then(|| {
                     let pos = |f: usize| from.is_none().then_some(&[x, y, z][f][..]);
                     let start = |f: usize| starts.then_some(&prev[f][..]);
+                    let tiles = from.map(|weft| {
+                        let n = per.min(blocks - (p + 1) * per);
+                        // The weft's chains are `cols` long.
+                        chains::Tiles::new(weft, chains::stride(cols), (p + 1) * per, n, len)
+                    });
                     chains::Ahead {
                         fields: [pos(0), pos(1), pos(2), start(0), start(1), start(2)],
                         first: next,
                         stride: cols,
                         span: (per * LANES).min(count - next),
+                        tiles,
                     }
                 });
                 solve(chunk, ahead.as_ref());
@@ -995,6 +1018,7 @@ impl XpbdGrid {
                         first: next,
                         stride,
                         span: (PAIR * LANES).min(count - next),
+                        tiles: None,
                     }
                 });
                 let solve = (alpha, gamma, iterations);
