@@ -426,10 +426,10 @@ fn real_time_drape_setting_meets_the_strain_figures_at_256() {
 }
 
 /// Issue 7's real-time drape at 512² with the README's setting: as at 256² above, with 4
-/// substeps of 5 chain rounds (the damping scaled by (48/512)²). The 512² cloth needs about
-/// 20 chain rounds per frame to hold its strain where it passes over the ball: 4 substeps of 4
-/// rounds leave the settled maximum far past 10 % (measured 270 %), and so do 5 of 3 (114 %);
-/// 4 of 5 hold it (measured 6.3 %, p99.9 1.1 %).
+/// substeps of 5 chain rounds (the damping scaled by (48/512)²). With fewer substeps the 512²
+/// cloth needs more chain rounds in each to hold its strain where it passes over the ball: 4
+/// substeps of 4 rounds leave the settled maximum far past 10 % (measured 270 %), and so do 5
+/// of 3 (114 %); 4 of 5 hold it (measured 6.3 %, p99.9 1.1 %).
 /// Tolerances: the issue's figures (p99.9 < 5 %, max < 10 %, penetration < 8 mm).
 #[test]
 fn real_time_drape_setting_meets_the_strain_figures_at_512() {
