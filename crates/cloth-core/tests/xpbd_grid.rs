@@ -418,11 +418,8 @@ fn grid_path_drapes_without_penetration() {
 /// Tolerances: the issue's figures (p99.9 < 5 %, max < 10 %, penetration < 8 mm).
 #[test]
 fn real_time_drape_setting_meets_the_strain_figures_at_256() {
-    let (p999, late_max, deepest) =
-        drape_figures(presets::realtime_drape(256, 3, 2).expect("drape"));
-    assert!(p999 < 0.05, "p99.9 structural strain {p999}");
-    assert!(late_max < 0.10, "settled structural maximum {late_max}");
-    assert!(deepest < 0.008, "penetration {deepest}");
+    let figures = drape_figures(presets::realtime_drape(256, 3, 2).expect("drape"));
+    assert_issue_figures("256² 3 × 2 × 2", figures);
 }
 
 /// Issue 7's real-time drape at 512² with the README's setting: as at 256² above, with 4
@@ -433,11 +430,8 @@ fn real_time_drape_setting_meets_the_strain_figures_at_256() {
 /// Tolerances: the issue's figures (p99.9 < 5 %, max < 10 %, penetration < 8 mm).
 #[test]
 fn real_time_drape_setting_meets_the_strain_figures_at_512() {
-    let (p999, late_max, deepest) =
-        drape_figures(presets::realtime_drape(512, 4, 5).expect("drape"));
-    assert!(p999 < 0.05, "p99.9 structural strain {p999}");
-    assert!(late_max < 0.10, "settled structural maximum {late_max}");
-    assert!(deepest < 0.008, "penetration {deepest}");
+    let figures = drape_figures(presets::realtime_drape(512, 4, 5).expect("drape"));
+    assert_issue_figures("512² 4 × 5 × 2", figures);
 }
 
 /// The order of the shear sweep is what lets the setting above meet the figures: the same
@@ -461,10 +455,19 @@ fn shear_colours_need_five_substeps_at_256_where_rows_need_three() {
         at_three > 0.10,
         "colours at 3 substeps: settled structural maximum {at_three}"
     );
-    let (p999, late_max, deepest) = colours(5);
-    assert!(p999 < 0.05, "colours at 5: p99.9 structural strain {p999}");
-    assert!(late_max < 0.10, "colours at 5: settled maximum {late_max}");
-    assert!(deepest < 0.008, "colours at 5: penetration {deepest}");
+    assert_issue_figures("colours at 5", colours(5));
+}
+
+/// Issue 7's figures for [`drape_figures`]' `(p99.9, settled maximum, deepest penetration)`:
+/// the structural strain's 99.9th percentile under 5 %, its settled maximum under 10 %, no
+/// penetration as deep as the contact layer (8 mm).
+fn assert_issue_figures(what: &str, (p999, late_max, deepest): (f32, f32, f32)) {
+    assert!(p999 < 0.05, "{what}: p99.9 structural strain {p999}");
+    assert!(
+        late_max < 0.10,
+        "{what}: settled structural maximum {late_max}"
+    );
+    assert!(deepest < 0.008, "{what}: penetration {deepest}");
 }
 
 /// 3 s (180 frames) of a drape: the 99.9th percentile of the structural strain at the end,

@@ -389,8 +389,8 @@ pub(crate) struct Ahead<'a> {
 
 /// The tiles [`handoff`] reads for the next blocks: in every block of the other direction
 /// (`from`, [`FIELDS`] arrays of `size` floats each), the positions (fields 0, 1, 2) from
-/// entry `offset` on, `floats` of them; `per_step` lines of each field per step of the
-/// elimination, so that the whole set arrives over its steps. Half of those blocks were solved
+/// entry `offset` on, `lines` cache lines of them; `per_step` lines of each field per step of
+/// the elimination, so that the whole set arrives over its steps. Half of those blocks were solved
 /// by the other thread: without it the hand-offs read them from its cache or from L3 while
 /// transposing (their share of the 512² drape's samples, against the chain solve's, 0.25–0.32
 /// before, 0.19–0.24 with it).
@@ -399,7 +399,7 @@ pub(crate) struct Tiles<'a> {
     from: &'a [f32],
     size: usize,
     offset: usize,
-    floats: usize,
+    lines: usize,
     per_step: usize,
 }
 
@@ -413,23 +413,22 @@ impl<'a> Tiles<'a> {
         count: usize,
         steps: usize,
     ) -> Self {
-        let floats = count * LANES * LANES;
-        let lines = from.len() / (FIELDS * size) * floats.div_ceil(16);
+        let lines = (count * LANES * LANES).div_ceil(16);
+        let total = from.len() / (FIELDS * size) * lines;
         Self {
             from,
             size,
             offset: next * LANES * LANES,
-            floats,
-            per_step: lines.div_ceil(steps.max(1)),
+            lines,
+            per_step: total.div_ceil(steps.max(1)),
         }
     }
 
     /// Step `k`'s lines (each a line of the three fields).
     #[inline(always)]
     fn row(&self, k: usize) {
-        let per_block = self.floats.div_ceil(16);
         for line in k * self.per_step..(k + 1) * self.per_step {
-            let (block, line) = (line / per_block, line % per_block);
+            let (block, line) = (line / self.lines, line % self.lines);
             for f in 0..3 {
                 let at = (block * FIELDS + f) * self.size + self.offset + line * 16;
                 if let Some(l) = self.from.get(at..at + 16) {
@@ -440,7 +439,19 @@ impl<'a> Tiles<'a> {
     }
 }
 
-impl Ahead<'_> {
+impl<'a> Ahead<'a> {
+    /// Only the other direction's tiles (a task whose next blocks gather nothing from the
+    /// grid).
+    pub(crate) fn tiles(tiles: Tiles<'a>) -> Self {
+        Self {
+            fields: [None; 6],
+            first: 0,
+            stride: 0,
+            span: 0,
+            tiles: Some(tiles),
+        }
+    }
+
     #[inline(always)]
     pub(crate) fn row(&self, k: usize) {
         let at = self.first + k * self.stride;

@@ -763,19 +763,11 @@ impl XpbdGrid {
                     // The tiles the next pair's hand-off reads from the warp's blocks, fetched
                     // into L2 during this pair's solve (as the warp's are).
                     let next = (p + 1) * per;
-                    let ahead = from.filter(|_| next < blocks).map(|warp| chains::Ahead {
-                        fields: [None; 6],
-                        first: 0,
-                        stride: 0,
-                        span: 0,
+                    let ahead = from.filter(|_| next < blocks).map(|warp| {
                         // The warp's chains are `rows` long.
-                        tiles: Some(chains::Tiles::new(
-                            warp,
-                            chains::stride(rows),
-                            next,
-                            per.min(blocks - next),
-                            len,
-                        )),
+                        let size = chains::stride(rows);
+                        let n = per.min(blocks - next);
+                        chains::Ahead::tiles(chains::Tiles::new(warp, size, next, n, len))
                     });
                     solve(chunk, ahead.as_ref());
                     for (h, block) in chunk.chunks_exact(FIELDS * size).enumerate() {
@@ -852,9 +844,10 @@ impl XpbdGrid {
                     let pos = |f: usize| from.is_none().then_some(&[x, y, z][f][..]);
                     let start = |f: usize| starts.then_some(&prev[f][..]);
                     let tiles = from.map(|weft| {
-                        let n = per.min(blocks - (p + 1) * per);
+                        let next_block = (p + 1) * per;
+                        let n = per.min(blocks - next_block);
                         // The weft's chains are `cols` long.
-                        chains::Tiles::new(weft, chains::stride(cols), (p + 1) * per, n, len)
+                        chains::Tiles::new(weft, chains::stride(cols), next_block, n, len)
                     });
                     chains::Ahead {
                         fields: [pos(0), pos(1), pos(2), start(0), start(1), start(2)],
