@@ -78,18 +78,19 @@ pub fn drape(n: usize, integrator: Integrator) -> Result<Simulation> {
 
 /// The drape of issue 7's real-time target at `n × n` particles, as
 /// `scripts/realtime-series.sh` and the criterion benches run it: XPBD with `substeps`
-/// substeps, each with `rounds` rounds of chain solves of two Newton iterations
-/// (`xpbd.chains`, `xpbd.chain_rounds`, `xpbd.chain_iterations`), the shear springs swept row
-/// by row (`xpbd.shear_rows`) and the 2 % structural strain limit
-/// (`xpbd.structural_limit`); the scene's global damping, set for its native 48², scaled by
-/// (48/n)² so that the cloth's total damping, and so its fall, is the same at every
-/// resolution. 3 substeps of 2 rounds meet the strain figures at 256², 4 of 5 at 512².
+/// substeps, each with `rounds` rounds of chain solves of two Newton iterations relaxed by
+/// `relaxation` (`xpbd.chains`, `xpbd.chain_rounds`, `xpbd.chain_iterations`,
+/// `xpbd.chain_relaxation`), the shear springs swept row by row (`xpbd.shear_rows`) and the
+/// 2 % structural strain limit (`xpbd.structural_limit`); the scene's global damping, set for
+/// its native 48², scaled by (48/n)² so that the cloth's total damping, and so its fall, is
+/// the same at every resolution. 3 substeps of 2 rounds (relaxation 1) meet the strain
+/// figures at 256², 4 of 4 with relaxation 1.3 at 512² (4 of 5 with relaxation 1).
 ///
 /// # Errors
 /// As [`drape`], and [`ClothError::InvalidArgument`] for `substeps` outside
-/// `1 ..= MAX_SUBSTEPS` or `rounds` outside `1 ..= 16`.
+/// `1 ..= MAX_SUBSTEPS`, `rounds` outside `1 ..= 16` or `relaxation` outside `(0, 2)`.
 #[cfg(feature = "scene")]
-pub fn realtime_drape(n: usize, substeps: u32, rounds: u32) -> Result<Simulation> {
+pub fn realtime_drape(n: usize, substeps: u32, rounds: u32, relaxation: f32) -> Result<Simulation> {
     let native = crate::scene::builtin("drape").expect("built-in scene");
     let side = native.cloth.resolution[0] as f32;
     let mut sim = drape(n, Integrator::Xpbd)?;
@@ -99,6 +100,7 @@ pub fn realtime_drape(n: usize, substeps: u32, rounds: u32) -> Result<Simulation
     config.xpbd.chains = true;
     config.xpbd.chain_iterations = 2;
     config.xpbd.chain_rounds = rounds;
+    config.xpbd.chain_relaxation = relaxation;
     config.xpbd.structural_limit = Some(0.02);
     config.xpbd.shear_rows = true;
     sim.set_config(config)?;

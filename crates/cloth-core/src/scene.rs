@@ -604,7 +604,8 @@ pub struct SolverDesc {
     #[serde(default)]
     pub implicit: ImplicitDesc,
     /// `{ iterations, tethers, tether_slack, hierarchy_levels, hierarchy_slack,
-    /// structural_limit, chains, chain_iterations, chain_rounds, shear_chains, shear_rows }`
+    /// structural_limit, chains, chain_iterations, chain_rounds, chain_relaxation, shear_chains,
+    /// shear_rows }`
     /// (see [`XpbdDesc`]).
     #[serde(default)]
     pub xpbd: XpbdDesc,
@@ -713,6 +714,8 @@ pub struct XpbdDesc {
     pub chain_iterations: u32,
     #[serde(default = "d_chain_rounds")]
     pub chain_rounds: u32,
+    #[serde(default = "d_chain_relaxation")]
+    pub chain_relaxation: f32,
     #[serde(default)]
     pub shear_chains: bool,
     #[serde(default)]
@@ -720,6 +723,9 @@ pub struct XpbdDesc {
 }
 fn d_chain_rounds() -> u32 {
     XpbdSettings::default().chain_rounds
+}
+fn d_chain_relaxation() -> f32 {
+    XpbdSettings::default().chain_relaxation
 }
 fn d_chain_iter() -> u32 {
     XpbdSettings::default().chain_iterations
@@ -745,6 +751,7 @@ impl Default for XpbdDesc {
             chains: false,
             chain_iterations: d_chain_iter(),
             chain_rounds: d_chain_rounds(),
+            chain_relaxation: d_chain_relaxation(),
             shear_chains: false,
             shear_rows: false,
         }
@@ -1364,6 +1371,14 @@ impl Scene {
                 "1 ..= 16",
             ));
         }
+        let omega = s.xpbd.chain_relaxation;
+        if !(omega.is_finite() && omega > 0.0 && omega < 2.0) {
+            return Err(invalid(
+                "solver.xpbd.chain_relaxation",
+                omega,
+                "greater than 0 and less than 2",
+            ));
+        }
         if !(s.limits.max_stretch_ratio.is_finite() && s.limits.max_stretch_ratio > 1.0) {
             return Err(invalid(
                 "solver.limits.max_stretch_ratio",
@@ -1479,6 +1494,7 @@ impl Scene {
             chains: s.xpbd.chains,
             chain_iterations: s.xpbd.chain_iterations,
             chain_rounds: s.xpbd.chain_rounds,
+            chain_relaxation: s.xpbd.chain_relaxation,
             shear_chains: s.xpbd.shear_chains,
             shear_rows: s.xpbd.shear_rows,
         };
@@ -1736,6 +1752,7 @@ const KNOWN_KEYS: &[&str] = &[
     "chains",
     "chain_iterations",
     "chain_rounds",
+    "chain_relaxation",
     "shear_chains",
     "shear_rows",
     "max_stretch_ratio",
@@ -2145,6 +2162,7 @@ impl Scene {
                 chains: c.xpbd.chains,
                 chain_iterations: c.xpbd.chain_iterations,
                 chain_rounds: c.xpbd.chain_rounds,
+                chain_relaxation: c.xpbd.chain_relaxation,
                 shear_chains: c.xpbd.shear_chains,
                 shear_rows: c.xpbd.shear_rows,
             },

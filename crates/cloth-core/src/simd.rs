@@ -1921,8 +1921,7 @@ dispatched! {
     fn xpbd_chains / chains_avx2 / chains_avx512(
         block: chains::Block<'_>,
         len: usize,
-        alpha: f32,
-        gamma: f32,
+        params: chains::Params,
         keep: bool,
         ahead: Option<&chains::Ahead<'_>>,
     ) = chains::solve_lanes, lanes = chains_lanes;
@@ -1947,6 +1946,7 @@ struct ChainConsts<V> {
     g1: V,
     alpha: V,
     gamma: V,
+    relaxation: V,
     zero: V,
     one: V,
     minus: V,
@@ -2040,9 +2040,12 @@ unsafe fn chain_spring<V: Lanes>(
         };
         let rhs = V::select(
             active,
-            V::sub(
-                V::sub(V::xor(constraint, k.minus), V::mul(k.alpha, lam)),
-                V::mul(k.gamma, rate),
+            V::mul(
+                V::sub(
+                    V::sub(V::xor(constraint, k.minus), V::mul(k.alpha, lam)),
+                    V::mul(k.gamma, rate),
+                ),
+                k.relaxation,
             ),
             k.zero,
         );
@@ -2123,8 +2126,11 @@ struct ChainCarry<V> {
 unsafe fn chains_lanes<V: Lanes>(
     block: chains::Block<'_>,
     len: usize,
-    alpha: f32,
-    gamma: f32,
+    chains::Params {
+        alpha,
+        gamma,
+        relaxation,
+    }: chains::Params,
     keep: bool,
     ahead: Option<&chains::Ahead<'_>>,
 ) {
@@ -2171,6 +2177,7 @@ unsafe fn chains_lanes<V: Lanes>(
             g1: V::splat(1.0 + gamma),
             alpha: V::splat(alpha),
             gamma: V::splat(gamma),
+            relaxation: V::splat(relaxation),
             zero,
             one,
             minus: V::splat(-0.0),
@@ -2604,7 +2611,8 @@ mod tests {
     /// a block (its fields; the scratch is not a result): 16 chains
     /// of 2 and of 37 particles, with the lanes the solve leaves out (a zero-length spring,
     /// a spring between two pinned particles, one pinned end, a negative rest length), kept
-    /// and unused multipliers, one and three iterations. Tolerance: none (bits). Under CI on
+    /// and unused multipliers, one and three iterations, and two over-relaxed ones
+    /// (`XpbdSettings::chain_relaxation` 1.3). Tolerance: none (bits). Under CI on
     /// x86-64 the AVX2 kernel must be available, so that its intrinsics are what is compared
     /// (elsewhere a CPU without it has only the generic solve to run).
     #[test]
@@ -2642,14 +2650,23 @@ mod tests {
             fields[6 * size + LANES + 2] = 0.0;
             fields[6 * size + 3] = 0.0;
             fields[7 * size + 4] = -1.0;
-            for (keep, iterations) in [(false, 1), (true, 1), (true, 3)] {
+            for (keep, iterations, relaxation) in [
+                (false, 1, 1.0),
+                (true, 1, 1.0),
+                (true, 3, 1.0),
+                (true, 2, 1.3),
+            ] {
+                let params = chains::Params {
+                    relaxation,
+                    ..chains::Params::test()
+                };
                 let solve = |kernel: Option<Kernel>| {
                     let (mut f, mut work) = (fields.clone(), vec![0.0_f32; SCRATCH * size]);
                     for _ in 0..iterations {
                         let block = Block::split(&mut f, &mut work, size);
                         match kernel {
-                            Some(kernel) => xpbd_chains(kernel, block, len, 0.01, 0.05, keep, None),
-                            None => chains::solve_lanes(block, len, 0.01, 0.05, keep, None),
+                            Some(kernel) => xpbd_chains(kernel, block, len, params, keep, None),
+                            None => chains::solve_lanes(block, len, params, keep, None),
                         }
                     }
                     // The block's fields only: the scratch is not a result (the AVX-512
@@ -2660,7 +2677,8 @@ mod tests {
                 for kernel in Kernel::ALL.into_iter().filter(|k| k.is_available()) {
                     assert!(
                         solve(Some(kernel)) == generic,
-                        "{kernel:?}: chains of {len}, keep {keep}, {iterations} iterations"
+                        "{kernel:?}: chains of {len}, keep {keep}, {iterations} iterations, \
+                         relaxation {relaxation}"
                     );
                 }
             }

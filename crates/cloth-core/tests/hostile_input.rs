@@ -136,6 +136,8 @@ fn override_of(rng: &mut Rng) -> String {
                 "hierarchy_levels=40",
                 "chain_rounds=0",
                 "chain_rounds=3",
+                "chain_relaxation=1.3",
+                "chain_relaxation=2.5",
                 "chain_iterations=2",
                 "tethers=true",
             ];

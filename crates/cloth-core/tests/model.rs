@@ -554,6 +554,15 @@ fn bad_configs() -> Vec<(SimConfig, &'static str, &'static str)> {
         c.xpbd.chain_rounds = outside;
         v.push((c, "config.xpbd.chain_rounds", "1 ..= 16"));
     }
+    for outside in [0.0, -0.5, 2.0, f32::NAN, f32::INFINITY] {
+        let mut c = d();
+        c.xpbd.chain_relaxation = outside;
+        v.push((
+            c,
+            "config.xpbd.chain_relaxation",
+            "greater than 0 and less than 2",
+        ));
+    }
     for outside in [-0.01, 1.5, f32::NAN, f32::INFINITY] {
         let mut c = d();
         c.xpbd.structural_limit = Some(outside);

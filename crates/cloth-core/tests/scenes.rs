@@ -256,7 +256,7 @@ fn wrong_types_are_errors() {
 /// Out-of-range and non-finite values name the key, its line and the allowed range.
 #[test]
 fn out_of_range_values_name_key_line_and_range() {
-    let cases: [(&str, &str, &str, usize, &str); 14] = [
+    let cases: [(&str, &str, &str, usize, &str); 15] = [
         (
             "resolution = [8, 8]",
             "resolution = [0, 8]",
@@ -340,6 +340,13 @@ fn out_of_range_values_name_key_line_and_range() {
             "solver.xpbd.chain_rounds",
             12,
             "1 ..= 16",
+        ),
+        (
+            "radius = 0.5",
+            "radius = 0.5\n[solver.xpbd]\nchains = true\nchain_relaxation = 2.0",
+            "solver.xpbd.chain_relaxation",
+            12,
+            "greater than 0 and less than 2",
         ),
         (
             "radius = 0.5",

@@ -94,6 +94,30 @@ pub(crate) const FIELDS: usize = 9;
 /// spring's computation to its elimination step in registers).
 pub(crate) const SCRATCH: usize = 5;
 
+/// What a chain solve takes besides its chains: the springs' compliance `alpha` (α̃ = 1/(k·h²))
+/// and damping `gamma` (`solver::xpbd::compliance`), and the relaxation ω of the solve's step
+/// (`XpbdSettings::chain_relaxation`): every right-hand side is multiplied by ω, so every
+/// multiplier's change, and the moves, are ω times the Newton step's. With ω = 1 the
+/// multiplication changes no bit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Params {
+    pub(crate) alpha: f32,
+    pub(crate) gamma: f32,
+    pub(crate) relaxation: f32,
+}
+
+#[cfg(test)]
+impl Params {
+    /// The unit tests' springs: α̃ = 0.01, γ = 0.05, the plain step.
+    pub(crate) fn test() -> Self {
+        Self {
+            alpha: 0.01,
+            gamma: 0.05,
+            relaxation: 1.0,
+        }
+    }
+}
+
 /// One block of `L` chains of `len` particles, step-major (entry `(k, lane)` at `k·L + lane`;
 /// the per-spring arrays use entries `k < len − 1`, spring `k` joining particles `k` and
 /// `k + 1`).
@@ -160,8 +184,11 @@ impl<'a> Block<'a> {
 pub(crate) fn solve<const L: usize>(
     mut block: Block<'_>,
     len: usize,
-    alpha: f32,
-    gamma: f32,
+    Params {
+        alpha,
+        gamma,
+        relaxation,
+    }: Params,
     keep: bool,
     ahead: Option<&Ahead<'_>>,
 ) {
@@ -232,8 +259,9 @@ pub(crate) fn solve<const L: usize>(
                     let rate = (ux * vx) + (uy * vy) + (uz * vz);
                     let constraint = length - rest_k[l];
                     diag_k[l] = if active { g1 * ws + alpha } else { 1.0 };
+                    // Times the relaxation ω (1: the plain Newton step, the same bits).
                     rhs_k[l] = if active {
-                        -constraint - alpha * lam_k[l] - gamma * rate
+                        (-constraint - alpha * lam_k[l] - gamma * rate) * relaxation
                     } else {
                         0.0
                     };
@@ -362,12 +390,11 @@ pub(crate) fn solve<const L: usize>(
 pub(crate) fn solve_lanes(
     block: Block<'_>,
     len: usize,
-    alpha: f32,
-    gamma: f32,
+    params: Params,
     keep: bool,
     ahead: Option<&Ahead<'_>>,
 ) {
-    solve::<LANES>(block, len, alpha, gamma, keep, ahead);
+    solve::<LANES>(block, len, params, keep, ahead);
 }
 
 /// What the next blocks of a direction will read, fetched into L2 ([`crate::simd::prefetch`])
@@ -510,7 +537,7 @@ pub(crate) fn iterate(
     scratch: &mut [f32],
     size: usize,
     len: usize,
-    (alpha, gamma, iterations): (f32, f32, u32),
+    (params, iterations): (Params, u32),
     multipliers: Multipliers,
     kernel: crate::simd::Kernel,
     ahead: Option<&Ahead<'_>>,
@@ -529,7 +556,7 @@ pub(crate) fn iterate(
             // The next blocks' entries fetched during the first block's first iteration only.
             let ahead = ahead.filter(|_| iteration == 0 && b == 0);
             let block = Block::split(block, work, size);
-            crate::simd::xpbd_chains(kernel, block, len, alpha, gamma, keep, ahead);
+            crate::simd::xpbd_chains(kernel, block, len, params, keep, ahead);
         }
     }
 }
@@ -725,7 +752,7 @@ pub(crate) fn solve_reference(
     rest: &[f32],
     lambda: &mut [f32],
     (rows, cols, class): (usize, usize, usize),
-    solve: (f32, f32, u32),
+    solve: (Params, u32),
     scratch: &mut Vec<f32>,
 ) {
     let (count, len) = shape(class, rows, cols);
@@ -749,7 +776,7 @@ pub(crate) fn solve_reference_diagonal(
     rest: &[f32],
     lambda: &mut [f32],
     (rows, cols, dir): (usize, usize, usize),
-    solve: (f32, f32, u32),
+    solve: (Params, u32),
     scratch: &mut Vec<f32>,
 ) {
     let edge = if dir == 0 { 0 } else { cols - 1 };
@@ -786,7 +813,7 @@ fn solve_line(
         impl Fn(usize) -> usize,
         impl Fn(usize) -> Option<usize>,
     ),
-    (alpha, gamma, iterations): (f32, f32, u32),
+    (params, iterations): (Params, u32),
     scratch: &mut Vec<f32>,
 ) {
     // Every field the solve reads is gathered below; only the length matters.
@@ -807,14 +834,7 @@ fn solve_line(
     }
     for _ in 0..iterations {
         let (fields, work) = scratch.split_at_mut(FIELDS * len);
-        solve::<1>(
-            Block::split(fields, work, len),
-            len,
-            alpha,
-            gamma,
-            true,
-            None,
-        );
+        solve::<1>(Block::split(fields, work, len), len, params, true, None);
     }
     for k in 0..len {
         let i = entry(k);
@@ -878,8 +898,7 @@ mod tests {
             solve::<1>(
                 Block::split(&mut fields, &mut work, len),
                 len,
-                0.01,
-                0.05,
+                Params::test(),
                 true,
                 None,
             );

@@ -568,7 +568,12 @@ impl XpbdGrid {
                 if let (true, 2 | 3, Mode::Compliant { alpha, gamma }) =
                     (settings.shear_chains, class, mode)
                 {
-                    self.shear_chains(class - 2, (alpha, gamma, settings.chain_iterations));
+                    let params = super::chains::Params {
+                        alpha,
+                        gamma,
+                        relaxation: settings.chain_relaxation,
+                    };
+                    self.shear_chains(class - 2, (params, settings.chain_iterations));
                     continue;
                 }
                 // `shear_rows` (after `shear_chains`, which takes both shear classes above):
@@ -622,7 +627,12 @@ impl XpbdGrid {
                         } else {
                             (None, in_blocks && round > 0)
                         };
-                        let solve = (alpha, gamma, iterations);
+                        let params = super::chains::Params {
+                            alpha,
+                            gamma,
+                            relaxation: settings.chain_relaxation,
+                        };
+                        let solve = (params, iterations);
                         self.chains(class, solve, multipliers, (handoff, in_blocks), after);
                     }
                 }
@@ -671,7 +681,7 @@ impl XpbdGrid {
     fn chains(
         &mut self,
         class: usize,
-        (alpha, gamma, iterations): (f32, f32, u32),
+        solve: (super::chains::Params, u32),
         multipliers: Multipliers,
         (handoff, in_blocks): (bool, bool),
         contacts: Option<(&[crate::collide::Collider], f32)>,
@@ -704,7 +714,6 @@ impl XpbdGrid {
         let work = &self.chain_work;
         let (statics, starts) = chain_flags(&mut self.chain_statics, &mut self.chain_starts, class);
         let solve = |chunk: &mut [f32], ahead: Option<&chains::Ahead<'_>>| {
-            let solve = (alpha, gamma, iterations);
             iterate_chunk(
                 chunk,
                 work,
@@ -909,7 +918,7 @@ impl XpbdGrid {
     /// of a block read and write one contiguous run of columns (wrapped at the row's end, in
     /// one block per row). The blocks keep their inverse masses and rest lengths between
     /// substeps and their start positions through a substep, as the warp's do.
-    fn shear_chains(&mut self, dir: usize, (alpha, gamma, iterations): (f32, f32, u32)) {
+    fn shear_chains(&mut self, dir: usize, solve: (super::chains::Params, u32)) {
         use super::chains::{self, FIELDS, LANES};
         let (rows, cols) = (self.rows, self.cols);
         if rows < 2 || cols < 2 {
@@ -928,7 +937,7 @@ impl XpbdGrid {
         self.chain_work
             .prepare(PAIR * chains::SCRATCH * size, SCRATCH_SLOT);
         let keep = self.keep;
-        let multipliers = Multipliers::of(keep, iterations > 1);
+        let multipliers = Multipliers::of(keep, solve.1 > 1);
         // The column of block `first`'s first lane at row `k` (its lanes take the next
         // columns, wrapped), and the first slot of their springs (an anti-diagonal's slot is
         // its upper end's column minus one).
@@ -1014,7 +1023,6 @@ impl XpbdGrid {
                         tiles: None,
                     }
                 });
-                let solve = (alpha, gamma, iterations);
                 iterate_chunk(
                     chunk,
                     work,
@@ -2955,7 +2963,7 @@ fn iterate_chunk(
     chunk: &mut [f32],
     work: &ThreadScratch,
     (size, len): (usize, usize),
-    solve: (f32, f32, u32),
+    solve: (super::chains::Params, u32),
     (multipliers, kernel): (Multipliers, crate::simd::Kernel),
     ahead: Option<&super::chains::Ahead<'_>>,
 ) {

@@ -339,6 +339,11 @@ fn solve_springs(
         if let (SpringKind::Shear, true, Some((rows, cols))) =
             (kind, shear_chains, ctx.topology.grid())
         {
+            let params = super::chains::Params {
+                alpha,
+                gamma,
+                relaxation: cfg.xpbd.chain_relaxation,
+            };
             for dir in 0..2 {
                 super::chains::solve_reference_diagonal(
                     &mut *p,
@@ -346,7 +351,7 @@ fn solve_springs(
                     sc.grid.class_rest(2 + dir),
                     &mut sc.shear_lambda[dir],
                     (rows, cols, dir),
-                    (alpha, gamma, cfg.xpbd.chain_iterations),
+                    (params, cfg.xpbd.chain_iterations),
                     &mut sc.chain_scratch,
                 );
             }
@@ -418,13 +423,18 @@ fn solve_springs(
             let Some((alpha, gamma)) = compliance(cfg, kind, h) else {
                 continue;
             };
+            let params = super::chains::Params {
+                alpha,
+                gamma,
+                relaxation: cfg.xpbd.chain_relaxation,
+            };
             super::chains::solve_reference(
                 ctx.particles,
                 &sc.prev,
                 sc.grid.class_rest(class),
                 &mut sc.chain_lambda[class],
                 (rows, cols, class),
-                (alpha, gamma, cfg.xpbd.chain_iterations),
+                (params, cfg.xpbd.chain_iterations),
                 &mut sc.chain_scratch,
             );
         }
