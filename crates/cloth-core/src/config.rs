@@ -400,6 +400,16 @@ pub struct XpbdSettings {
     pub shear_rows: bool,
 }
 
+impl XpbdSettings {
+    /// The allowed values of [`Self::chain_relaxation`], as its errors state them.
+    pub(crate) const CHAIN_RELAXATION_RANGE: &'static str = "greater than 0 and less than 2";
+
+    /// Whether `omega` is an allowed [`Self::chain_relaxation`] (finite, `0 < ω < 2`).
+    pub(crate) fn chain_relaxation_allowed(omega: f32) -> bool {
+        omega.is_finite() && omega > 0.0 && omega < 2.0
+    }
+}
+
 impl Default for XpbdSettings {
     fn default() -> Self {
         Self {
@@ -596,11 +606,11 @@ impl SimConfig {
             ));
         }
         let omega = self.xpbd.chain_relaxation;
-        if !(omega.is_finite() && omega > 0.0 && omega < 2.0) {
+        if !XpbdSettings::chain_relaxation_allowed(omega) {
             return Err(ClothError::invalid(
                 "config.xpbd.chain_relaxation",
                 omega,
-                "greater than 0 and less than 2",
+                XpbdSettings::CHAIN_RELAXATION_RANGE,
             ));
         }
         if let Some(sc) = self.self_collision {

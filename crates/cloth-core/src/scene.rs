@@ -1372,11 +1372,11 @@ impl Scene {
             ));
         }
         let omega = s.xpbd.chain_relaxation;
-        if !(omega.is_finite() && omega > 0.0 && omega < 2.0) {
+        if !XpbdSettings::chain_relaxation_allowed(omega) {
             return Err(invalid(
                 "solver.xpbd.chain_relaxation",
                 omega,
-                "greater than 0 and less than 2",
+                XpbdSettings::CHAIN_RELAXATION_RANGE,
             ));
         }
         if !(s.limits.max_stretch_ratio.is_finite() && s.limits.max_stretch_ratio > 1.0) {

@@ -106,9 +106,19 @@ pub(crate) struct Params {
     pub(crate) relaxation: f32,
 }
 
-#[cfg(test)]
 impl Params {
+    /// The chain solves' parameters for springs of compliance `alpha` and damping `gamma`
+    /// under `settings` (their relaxation), on both paths.
+    pub(crate) fn new(alpha: f32, gamma: f32, settings: &crate::config::XpbdSettings) -> Self {
+        Self {
+            alpha,
+            gamma,
+            relaxation: settings.chain_relaxation,
+        }
+    }
+
     /// The unit tests' springs: α̃ = 0.01, γ = 0.05, the plain step.
+    #[cfg(test)]
     pub(crate) fn test() -> Self {
         Self {
             alpha: 0.01,

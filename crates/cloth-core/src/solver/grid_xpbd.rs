@@ -568,11 +568,7 @@ impl XpbdGrid {
                 if let (true, 2 | 3, Mode::Compliant { alpha, gamma }) =
                     (settings.shear_chains, class, mode)
                 {
-                    let params = super::chains::Params {
-                        alpha,
-                        gamma,
-                        relaxation: settings.chain_relaxation,
-                    };
+                    let params = super::chains::Params::new(alpha, gamma, &settings);
                     self.shear_chains(class - 2, (params, settings.chain_iterations));
                     continue;
                 }
@@ -627,11 +623,7 @@ impl XpbdGrid {
                         } else {
                             (None, in_blocks && round > 0)
                         };
-                        let params = super::chains::Params {
-                            alpha,
-                            gamma,
-                            relaxation: settings.chain_relaxation,
-                        };
+                        let params = super::chains::Params::new(alpha, gamma, &settings);
                         let solve = (params, iterations);
                         self.chains(class, solve, multipliers, (handoff, in_blocks), after);
                     }

@@ -339,11 +339,7 @@ fn solve_springs(
         if let (SpringKind::Shear, true, Some((rows, cols))) =
             (kind, shear_chains, ctx.topology.grid())
         {
-            let params = super::chains::Params {
-                alpha,
-                gamma,
-                relaxation: cfg.xpbd.chain_relaxation,
-            };
+            let params = super::chains::Params::new(alpha, gamma, &cfg.xpbd);
             for dir in 0..2 {
                 super::chains::solve_reference_diagonal(
                     &mut *p,
@@ -423,11 +419,7 @@ fn solve_springs(
             let Some((alpha, gamma)) = compliance(cfg, kind, h) else {
                 continue;
             };
-            let params = super::chains::Params {
-                alpha,
-                gamma,
-                relaxation: cfg.xpbd.chain_relaxation,
-            };
+            let params = super::chains::Params::new(alpha, gamma, &cfg.xpbd);
             super::chains::solve_reference(
                 ctx.particles,
                 &sc.prev,
